@@ -1,0 +1,22 @@
+"""physrover: a physics-simulated multi-rover testbed for multiagent learning research.
+
+Reproduces the tightly coupled multi-rover domain and the fitness critics of "Multi-level
+Fitness Critics for Cooperative Coevolution", with an idealised and a physical motion model.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+from physrover.config import ConfigError, DomainConfig
+from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
+
+__version__ = "0.1.0"
+__all__ = ["ConfigError", "DomainConfig", "ENV_ID", "RoverEnv", "RoverVectorEnv", "__version__"]
+
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(
+        id=ENV_ID,
+        entry_point="physrover.envs:RoverEnv",
+        vector_entry_point="physrover.envs:RoverVectorEnv",
+    )

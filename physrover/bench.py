@@ -1,0 +1,51 @@
+"""Benchmarks (not tests): wall-clock timings reported as medians of repeated runs.
+
+Run through the CLI, e.g. ``physrover bench world``; pin one thread for comparable numbers
+(the CLI sets ``OMP_NUM_THREADS=1`` and ``torch.set_num_threads(1)`` unless told otherwise).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from physrover.config import DomainConfig
+from physrover.envs import RoverVectorEnv
+
+
+@dataclass(frozen=True)
+class Timing:
+    name: str
+    median_ms: float
+    runs_ms: tuple[float, ...]
+
+    def line(self) -> str:
+        lo, hi = min(self.runs_ms), max(self.runs_ms)
+        return (
+            f"{self.name}: median {self.median_ms:.2f} ms "
+            f"(min {lo:.2f}, max {hi:.2f}, {len(self.runs_ms)} runs)"
+        )
+
+
+def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> Timing:
+    """Time reset + ``config.steps`` steps of the vector env with uniform random actions."""
+    env = RoverVectorEnv(n_teams, config=config)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (config.steps, n_teams, config.n_rovers, 2)).astype(np.float32)
+    env.reset(seed=0)
+    runs = []
+    for _ in range(repeats + 1):  # the first run warms caches and is dropped
+        start = time.perf_counter()
+        env.reset()
+        for a in actions:
+            env.step(a)
+        runs.append(1000.0 * (time.perf_counter() - start))
+    runs = runs[1:]
+    name = (
+        f"world reset + {config.steps} steps, {n_teams} teams x {config.n_rovers} rovers, "
+        f"motion={config.motion}"
+    )
+    return Timing(name, statistics.median(runs), tuple(runs))

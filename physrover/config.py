@@ -1,0 +1,264 @@
+"""Typed, frozen configuration with field-named validation and TOML in/out.
+
+Field names are the public vocabulary of physrover: the same names are used in TOML files
+(``[domain]`` table), on the command line (``--set n_req=5``) and as keyword arguments of the
+gymnasium environments (``RoverVectorEnv(50, n_req=5)``).
+
+Every config is validated on construction: a bad value raises :class:`ConfigError`, whose
+message names the field and the allowed range. Unknown names are errors, never ignored.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+MOTION_MODELS = ("ideal", "physics")
+
+
+class ConfigError(ValueError):
+    """A configuration value is invalid; the message names the field."""
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        super().__init__(f"{field}: {message}")
+
+
+# ----------------------------------------------------------------------------------------------
+# Type coercion shared by every config dataclass
+# ----------------------------------------------------------------------------------------------
+
+
+def _coerce(field: str, annotation: Any, value: Any) -> Any:
+    """Return ``value`` converted to the field's declared type, or raise ConfigError.
+
+    Accepted conversions are the loss-free ones: int -> float, list -> tuple. A bool is never
+    accepted for a number (TOML and Python both allow ``True == 1``; a config should not).
+    """
+    if annotation is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(field, f"expected a number, got {value!r}")
+        value = float(value)
+        if math.isnan(value):
+            raise ConfigError(field, "must not be NaN")
+        return value
+    if annotation is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            if isinstance(value, float) and value.is_integer():
+                return int(value)
+            raise ConfigError(field, f"expected an integer, got {value!r}")
+        return int(value)
+    if annotation is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(field, f"expected true or false, got {value!r}")
+        return value
+    if annotation is str:
+        if not isinstance(value, str):
+            raise ConfigError(field, f"expected a string, got {value!r}")
+        return value
+    origin = typing.get_origin(annotation)
+    if origin is tuple:
+        (item_type, _ellipsis) = typing.get_args(annotation)
+        if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+            raise ConfigError(field, f"expected a list, got {value!r}")
+        return tuple(_coerce(field, item_type, v) for v in value)
+    raise TypeError(f"unsupported config field type {annotation!r} for {field}")
+
+
+class _Config:
+    """Mixin: type coercion on construction, dict/TOML conversion, unknown-key errors."""
+
+    #: Name of the TOML table that holds this config.
+    section: ClassVar[str] = ""
+
+    def _coerce_fields(self) -> None:
+        hints = typing.get_type_hints(type(self))
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = _coerce(f.name, hints[f.name], getattr(self, f.name))
+            object.__setattr__(self, f.name, value)
+
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]):
+        unknown = sorted(set(values) - set(cls.field_names()))
+        if unknown:
+            allowed = ", ".join(cls.field_names())
+            raise ConfigError(unknown[0], f"unknown {cls.__name__} field (known: {allowed})")
+        return cls(**values)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+
+    def replace(self, **changes: Any):
+        """A copy with ``changes`` applied and validated (unknown names are errors)."""
+        merged = self.to_dict()
+        unknown = sorted(set(changes) - set(merged))
+        if unknown:
+            raise ConfigError(unknown[0], f"unknown {type(self).__name__} field")
+        merged.update(changes)
+        return type(self)(**merged)
+
+    def to_toml(self) -> str:
+        return dumps_toml({self.section: self.to_dict()})
+
+    @classmethod
+    def from_toml(cls, text: str):
+        data = loads_toml(text)
+        unknown = sorted(set(data) - {cls.section})
+        if unknown:
+            raise ConfigError(unknown[0], f"unknown TOML table (expected [{cls.section}])")
+        return cls.from_dict(data.get(cls.section, {}))
+
+
+def _check(ok: bool, field: str, message: str) -> None:
+    if not ok:
+        raise ConfigError(field, message)
+
+
+# ----------------------------------------------------------------------------------------------
+# The domain
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class DomainConfig(_Config):
+    """The tightly coupled multi-rover domain (paper Sections 4.1-4.2).
+
+    Distances are in world units (the paper's: capture radius 4, POI ring radius 15); one
+    environment step is one time step ``t`` of Eqs. 11-16. Defaults are the paper's values.
+    """
+
+    section: ClassVar[str] = "domain"
+
+    n_rovers: int = 15
+    """Rovers per team (the paper varies 6-15)."""
+    poi_values: tuple[float, ...] = (1.0, 2.0, 3.0, 4.0)
+    """Value V_k of each POI; distinct and positive (the paper: 1..4, max score 10)."""
+    n_req: int = 3
+    """Coupling: rovers needed within d_cap of a POI at one step to capture it (Eq. 12)."""
+    d_cap: float = 4.0
+    """Capture radius, world units (Eq. 13)."""
+    d_min: float = 1.0
+    """Lower bound of the distance metric, world units (Eq. 14)."""
+    steps: int = 50
+    """Time steps per episode."""
+    poi_ring_radius: float = 15.0
+    """POIs start evenly on a circle of this radius around the origin, world units."""
+    spawn_radius: float = 1.5
+    """Rovers start uniformly at random in a disc of this radius at the origin, world units."""
+    motion: str = "ideal"
+    """Motion model: "ideal" (the paper's kinematics) or "physics" (pymunk bodies)."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        _check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
+        _check(len(self.poi_values) >= 1, "poi_values", "must list at least one POI value")
+        for v in self.poi_values:
+            _check(
+                v > 0 and math.isfinite(v),
+                "poi_values",
+                f"every value must be positive and finite, got {v}",
+            )
+        _check(
+            len(set(self.poi_values)) == len(self.poi_values),
+            "poi_values",
+            f"values must be distinct, got {list(self.poi_values)}",
+        )
+        _check(
+            1 <= self.n_req <= self.n_rovers,
+            "n_req",
+            f"must be in [1, n_rovers={self.n_rovers}], got {self.n_req}",
+        )
+        for name in ("d_cap", "d_min", "poi_ring_radius", "spawn_radius"):
+            value = getattr(self, name)
+            _check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        _check(
+            self.d_min <= self.d_cap,
+            "d_min",
+            f"must be in (0, d_cap={self.d_cap}], got {self.d_min}",
+        )
+        _check(self.steps >= 1, "steps", f"must be >= 1, got {self.steps}")
+        _check(
+            self.motion in MOTION_MODELS,
+            "motion",
+            f"must be one of {', '.join(MOTION_MODELS)}; got {self.motion!r}",
+        )
+
+    @property
+    def n_pois(self) -> int:
+        return len(self.poi_values)
+
+
+# ----------------------------------------------------------------------------------------------
+# TOML
+# ----------------------------------------------------------------------------------------------
+
+
+def loads_toml(text: str) -> dict[str, Any]:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("toml", f"cannot parse TOML: {exc}") from None
+
+
+def load_toml_file(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError("config", f"cannot read {path}: {exc.strerror}") from None
+    return loads_toml(text)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def dumps_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
+    """Write tables of scalars and flat lists as TOML (enough for every physrover config)."""
+    lines: list[str] = []
+    for name, table in tables.items():
+        if lines:
+            lines.append("")
+        lines.append(f"[{name}]")
+        lines.extend(f"{key} = {_toml_value(value)}" for key, value in table.items())
+    return "\n".join(lines) + "\n"
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Parse ``FIELD=VALUE`` from the command line; VALUE is read as TOML, else as a string.
+
+    ``n_req=5`` -> ("n_req", 5); ``poi_values=[1, 2]`` -> ("poi_values", [1, 2]);
+    ``motion=physics`` -> ("motion", "physics").
+    """
+    name, sep, raw = text.partition("=")
+    name = name.strip()
+    if not sep or not name:
+        raise ConfigError("--set", f"expected FIELD=VALUE, got {text!r}")
+    raw = raw.strip()
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return name, value

@@ -1,0 +1,235 @@
+"""Gymnasium environments over :class:`~physrover.domain.world.RoverWorld`.
+
+``RoverEnv`` is one team (a ``gymnasium.Env``, registered as ``physrover/Rover-v0``);
+``RoverVectorEnv`` is E teams natively batched on one world (a ``gymnasium.vector.VectorEnv``
+in the pattern of gymnasium's ``CartPoleVectorEnv``, not a SyncVectorEnv of single envs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from physrover.config import DomainConfig
+from physrover.domain.sensing import OBS_DIM
+from physrover.domain.world import ACTION_DIM, RoverWorld, Scenario
+
+ENV_ID = "physrover/Rover-v0"
+
+
+def resolve_config(
+    config: DomainConfig | Mapping[str, Any] | None, fields: Mapping
+) -> DomainConfig:
+    """A DomainConfig from an optional base (object or mapping) plus field overrides.
+
+    Unknown field names raise :class:`~physrover.config.ConfigError`.
+    """
+    if config is None:
+        return DomainConfig.from_dict(dict(fields))
+    if isinstance(config, DomainConfig):
+        return config.replace(**fields) if fields else config
+    if isinstance(config, Mapping):
+        return DomainConfig.from_dict({**config, **fields})
+    raise TypeError(f"config must be a DomainConfig or a mapping, got {type(config).__name__}")
+
+
+def _spaces(config: DomainConfig) -> tuple[spaces.Box, spaces.Box]:
+    shape = (config.n_rovers,)
+    observation = spaces.Box(0.0, np.inf, shape=(*shape, OBS_DIM), dtype=np.float32)
+    action = spaces.Box(-1.0, 1.0, shape=(*shape, ACTION_DIM), dtype=np.float32)
+    return observation, action
+
+
+class RoverEnv(gymnasium.Env):
+    """One team of the tightly coupled multi-rover domain (paper Section 4.1).
+
+    ## Description
+    R rovers start near the origin; K POIs of value V_k lie on a ring around them. A POI is
+    captured when at least ``n_req`` rovers are within ``d_cap`` of it at the same step; the
+    team score G sums the values of the POIs captured at any step (Eqs. 11-14).
+
+    ## Action Space
+    ``Box(-1, 1, (R, 2), float32)``: per rover a command in its own frame (forward, left).
+    Under ``motion="ideal"`` it is the displacement of this step in world units; under
+    ``motion="physics"`` the commanded velocity (world units per step). Values are clipped
+    to [-1, 1]; NaN raises ``ValueError``.
+
+    ## Observation Space
+    ``Box(0, inf, (R, 8), float32)``: per rover, rover density in its quadrants 0-3 (Eq. 15)
+    then POI value density in quadrants 0-3 (Eq. 16); quadrants 0 behind-right, 1
+    front-right, 2 front-left, 3 behind-left (see :mod:`physrover.domain.geometry`).
+
+    ## Rewards
+    The increase of G at each step (the first step's reward also includes a capture at
+    reset), so the rewards of an episode sum to its G.
+
+    ## Starting State
+    POIs evenly on a ring of radius ``poi_ring_radius`` (first at angle 0, then
+    counter-clockwise); rovers uniform in a disc of radius ``spawn_radius``; headings uniform
+    in [-pi, pi). ``reset(options=...)`` may give ``rover_positions`` (R, 2),
+    ``rover_headings`` (R,), ``poi_positions`` (K, 2), ``poi_values`` (K,).
+
+    ## Episode End
+    Truncated after ``steps`` steps; never terminated.
+
+    ## Info
+    ``"G"`` (score so far), ``"rover_positions"`` (R, 2), ``"rover_headings"`` (R,) and, on
+    the last step, ``"D"`` (R,): each rover's difference evaluation (Eq. 1).
+
+    ## Arguments
+    ``RoverEnv(config=None, render_mode=None, **fields)``: any :class:`DomainConfig` field
+    by name (e.g. ``n_rovers=4, n_req=2``), over an optional base ``config``.
+    """
+
+    metadata = {"render_modes": [], "render_fps": 10}
+
+    def __init__(
+        self,
+        config: DomainConfig | Mapping[str, Any] | None = None,
+        render_mode: str | None = None,
+        **fields: Any,
+    ):
+        self.config = resolve_config(config, fields)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                f"got {render_mode!r}"
+            )
+        self.render_mode = render_mode
+        self.observation_space, self.action_space = _spaces(self.config)
+        self.world = RoverWorld(self.config, n_teams=1)
+        self._last_G = 0.0
+
+    def _info(self) -> dict[str, Any]:
+        w = self.world
+        info = {
+            "G": float(w.G[0]),
+            "rover_positions": w.rover_positions[0].copy(),
+            "rover_headings": w.rover_headings[0].copy(),
+        }
+        if w.done:
+            info["D"] = w.D[0].copy()
+        return info
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        obs = self.world.reset([self.np_random], Scenario.from_options(options))
+        self._last_G = 0.0
+        return obs[0], self._info()
+
+    def step(self, action):
+        action = np.asarray(action)
+        if action.shape != self.action_space.shape:
+            raise ValueError(
+                f"action must have shape {self.action_space.shape}, got {action.shape}"
+            )
+        obs = self.world.step(action[None])
+        G = float(self.world.G[0])
+        reward, self._last_G = G - self._last_G, G
+        return obs[0], reward, False, self.world.done, self._info()
+
+
+def _team_generators(seed: int | Sequence[int] | None, n: int) -> list[np.random.Generator]:
+    """One generator per team, made as gymnasium's ``Env.reset(seed=...)`` makes its own."""
+    if seed is None:
+        seeds: Sequence[int | None] = [None] * n
+    elif isinstance(seed, (int, np.integer)):
+        seeds = [int(seed) + i for i in range(n)]
+    else:
+        seeds = list(seed)
+        if len(seeds) != n:
+            raise ValueError(f"need {n} seeds, one per team, got {len(seeds)}")
+    return [seeding.np_random(s)[0] for s in seeds]
+
+
+class RoverVectorEnv(VectorEnv):
+    """E teams of the multi-rover domain, natively batched (see :class:`RoverEnv`).
+
+    Spaces per team are those of :class:`RoverEnv`; batched spaces add a leading team axis.
+    As with gymnasium's ``SyncVectorEnv`` seeding, after ``reset(seed=s)`` team i starts and
+    steps exactly like ``RoverEnv`` after ``reset(seed=s + i)``; ``seed`` may also be a list
+    of E seeds. Autoreset mode is ``NEXT_STEP``: the ``step`` after the last step of an
+    episode resets every team (all teams run in lock step, so they end together) and
+    returns the new first observations with zero rewards.
+
+    Infos hold ``"G"`` (E,), ``"rover_positions"`` (E, R, 2), ``"rover_headings"`` (E, R)
+    and, on the last step, ``"D"`` (E, R), each with its ``"_name"`` mask as gymnasium's
+    vector envs do. The wrapped :class:`RoverWorld` is ``world``; its recorded trajectories
+    serve the fitness critics.
+
+    Arguments: ``RoverVectorEnv(num_envs, config=None, render_mode=None, **fields)``.
+    """
+
+    metadata = {"render_modes": [], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        config: DomainConfig | Mapping[str, Any] | None = None,
+        render_mode: str | None = None,
+        **fields: Any,
+    ):
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        if render_mode is not None:
+            raise ValueError(f"render_mode must be None for the vector env, got {render_mode!r}")
+        self.config = resolve_config(config, fields)
+        self.num_envs = int(num_envs)
+        self.render_mode = render_mode
+        self.single_observation_space, self.single_action_space = _spaces(self.config)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.world = RoverWorld(self.config, n_teams=self.num_envs)
+        self._rngs: list[np.random.Generator] | None = None
+        self._last_G = np.zeros(self.num_envs)
+        self._needs_reset = False
+
+    def _infos(self, G: np.ndarray) -> dict[str, Any]:
+        w = self.world
+        every = np.ones(self.num_envs, dtype=bool)
+        infos = {
+            "G": G,
+            "_G": every,
+            "rover_positions": w.rover_positions.copy(),
+            "_rover_positions": every,
+            "rover_headings": w.rover_headings.copy(),
+            "_rover_headings": every,
+        }
+        if w.done:
+            infos["D"] = w.D
+            infos["_D"] = every
+        return infos
+
+    def _reset_world(self, options: dict[str, Any] | None) -> np.ndarray:
+        obs = self.world.reset(self._rngs, Scenario.from_options(options))
+        self._last_G = np.zeros(self.num_envs)
+        self._needs_reset = False
+        return obs
+
+    def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
+        if seed is not None or self._rngs is None:
+            self._rngs = _team_generators(seed, self.num_envs)
+            self._np_random = self._rngs[0]
+        return self._reset_world(options), self._infos(self.world.G)
+
+    def step(self, actions):
+        if self._rngs is None:
+            raise RuntimeError("call reset() before step()")
+        n = self.num_envs
+        if self._needs_reset:  # NEXT_STEP autoreset: this call only resets
+            obs = self._reset_world(None)
+            zeros = np.zeros(n, dtype=bool)
+            return obs, np.zeros(n), zeros, zeros.copy(), self._infos(self.world.G)
+        obs = self.world.step(actions)
+        G = self.world.G
+        rewards, self._last_G = G - self._last_G, G
+        truncated = np.full(n, self.world.done)
+        self._needs_reset = self.world.done
+        return obs, rewards, np.zeros(n, dtype=bool), truncated, self._infos(G)

@@ -1,0 +1,105 @@
+"""Domain config: validation names the field, TOML round trips, --set parsing."""
+
+import pytest
+
+from physrover.config import ConfigError, DomainConfig, parse_override
+
+INVALID = [
+    ({"n_rovers": 0}, "n_rovers"),
+    ({"n_rovers": 2.5}, "n_rovers"),
+    ({"n_rovers": True}, "n_rovers"),
+    ({"n_req": 16}, "n_req"),
+    ({"n_req": 0}, "n_req"),
+    ({"n_rovers": 2, "n_req": 3}, "n_req"),
+    ({"poi_values": ()}, "poi_values"),
+    ({"poi_values": (1.0, 1.0)}, "poi_values"),
+    ({"poi_values": (1.0, -2.0)}, "poi_values"),
+    ({"poi_values": (1.0, 0.0)}, "poi_values"),
+    ({"poi_values": (1.0, float("inf"))}, "poi_values"),
+    ({"poi_values": "1,2"}, "poi_values"),
+    ({"d_cap": 0.0}, "d_cap"),
+    ({"d_cap": -4.0}, "d_cap"),
+    ({"d_cap": float("nan")}, "d_cap"),
+    ({"d_min": 0.0}, "d_min"),
+    ({"d_min": 5.0}, "d_min"),  # larger than d_cap: nothing could ever be captured
+    ({"steps": 0}, "steps"),
+    ({"poi_ring_radius": -1.0}, "poi_ring_radius"),
+    ({"spawn_radius": 0.0}, "spawn_radius"),
+    ({"motion": "teleport"}, "motion"),
+    ({"motion": 3}, "motion"),
+]
+
+
+@pytest.mark.parametrize(("fields", "bad"), INVALID)
+def test_invalid_values_name_the_field(fields, bad):
+    with pytest.raises(ConfigError) as err:
+        DomainConfig(**fields)
+    assert err.value.field == bad
+    assert str(err.value).startswith(f"{bad}: ")
+
+
+def test_range_is_in_the_message():
+    with pytest.raises(ConfigError, match=r"n_req: must be in \[1, n_rovers=15\], got 16"):
+        DomainConfig(n_req=16)
+
+
+def test_defaults_are_the_papers():
+    cfg = DomainConfig()
+    assert (cfg.n_rovers, cfg.n_req, cfg.d_cap, cfg.d_min, cfg.steps) == (15, 3, 4.0, 1.0, 50)
+    assert cfg.poi_values == (1.0, 2.0, 3.0, 4.0) and sum(cfg.poi_values) == 10
+    assert (cfg.poi_ring_radius, cfg.spawn_radius, cfg.motion) == (15.0, 1.5, "ideal")
+
+
+def test_coercion_is_lossless_only():
+    cfg = DomainConfig(poi_values=[1, 2], d_cap=4, n_rovers=4.0)
+    assert cfg.poi_values == (1.0, 2.0) and isinstance(cfg.poi_values, tuple)
+    assert isinstance(cfg.d_cap, float) and cfg.n_rovers == 4 and isinstance(cfg.n_rovers, int)
+
+
+def test_frozen():
+    with pytest.raises(AttributeError):
+        DomainConfig().n_req = 4
+
+
+def test_toml_round_trip():
+    cfg = DomainConfig(n_rovers=6, poi_values=(1.5, 2.0), n_req=4, d_cap=3.25, motion="physics")
+    text = cfg.to_toml()
+    assert text.startswith("[domain]\n")
+    assert DomainConfig.from_toml(text) == cfg
+
+
+def test_toml_unknown_key_and_table():
+    with pytest.raises(ConfigError, match="n_agents: unknown DomainConfig field"):
+        DomainConfig.from_toml("[domain]\nn_agents = 3\n")
+    with pytest.raises(ConfigError, match="unknown TOML table"):
+        DomainConfig.from_toml("[domian]\nn_req = 3\n")
+    with pytest.raises(ConfigError, match="cannot parse TOML"):
+        DomainConfig.from_toml("[domain\n")
+
+
+def test_replace_validates_and_rejects_unknown():
+    assert DomainConfig().replace(n_req=5).n_req == 5
+    with pytest.raises(ConfigError, match="n_req"):
+        DomainConfig().replace(n_req=99)
+    with pytest.raises(ConfigError, match="nreq"):
+        DomainConfig().replace(nreq=5)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("n_req=5", ("n_req", 5)),
+        ("d_cap = 3.5", ("d_cap", 3.5)),
+        ("poi_values=[1, 2.5]", ("poi_values", [1, 2.5])),
+        ("motion=physics", ("motion", "physics")),
+        ('motion="ideal"', ("motion", "ideal")),
+        ("collisions=true", ("collisions", True)),
+    ],
+)
+def test_parse_override(text, expected):
+    assert parse_override(text) == expected
+
+
+def test_parse_override_needs_equals():
+    with pytest.raises(ConfigError, match="expected FIELD=VALUE"):
+        parse_override("n_req")

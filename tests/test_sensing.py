@@ -1,0 +1,132 @@
+"""Sensing (Eqs. 14-16): hand-worked values, quadrant boundaries, and a plain-loop reference."""
+
+import math
+
+import numpy as np
+import pytest
+
+from physrover.domain.geometry import quadrants, relate
+from physrover.domain.sensing import observe
+
+
+def _obs(rovers, headings, pois, values, d_min=1.0):
+    return observe(
+        np.array([rovers], dtype=float),
+        np.array([headings], dtype=float),
+        np.array([pois], dtype=float),
+        np.array([values], dtype=float),
+        d_min,
+    )[0]
+
+
+def test_hand_worked_observation():
+    # Rover 0 at the origin facing +x. Rover 1 dead ahead at distance 2 -> front-left (q2),
+    # 1/4. Rover 2 dead right at 0.5 < d_min -> front-right (q1), 1/d_min^2 = 1.
+    # POI V=2 dead behind at 1 -> behind-right (q0), 2/1. POI V=4 dead left at 3 ->
+    # behind-left (q3), 4/9.
+    obs = _obs(
+        rovers=[(0, 0), (2, 0), (0, -0.5)],
+        headings=[0.0, 0.0, 0.0],
+        pois=[(-1, 0), (0, 3)],
+        values=[2.0, 4.0],
+    )
+    np.testing.assert_allclose(obs[0], [0, 1.0, 0.25, 0, 2.0, 0, 0, 4 / 9], rtol=1e-6)
+    # Rover 1 (facing +x at (2, 0)): rover 0 dead behind (q0) at 2 -> 1/4; rover 2 behind and
+    # to the right at sqrt(4.25) (q0) -> 1/4.25. POIs: (-1,0) behind at 3 -> 2/9 (q0);
+    # (0,3) behind-left (q3) at sqrt(13) -> 4/13.
+    np.testing.assert_allclose(obs[1], [0.25 + 1 / 4.25, 0, 0, 0, 2 / 9, 0, 0, 4 / 13], rtol=1e-6)
+
+
+def test_d_min_bounds_the_distance():
+    # Coincident and very close objects both count as 1/d_min^2, never more.
+    obs = _obs(
+        rovers=[(0, 0), (0.01, 0.0), (0.0, 0.0)],
+        headings=[0.0, 0.0, 0.0],
+        pois=[(0.0, 0.2)],
+        values=[3.0],
+        d_min=0.5,
+    )
+    # rover 1 dead ahead (q2), rover 2 coincident (bearing 0 -> q2): each 1/0.25 = 4.
+    # POI dead left at 0.2 < 0.5 (q3): 3 / 0.25 = 12.
+    np.testing.assert_allclose(obs[0], [0, 0, 8.0, 0, 0, 0, 0, 12.0], rtol=1e-6)
+
+
+def test_sensing_uses_the_rovers_own_frame():
+    # Same layout, rover rotated by +90 deg: the object at world (0, 2) is now dead ahead.
+    # (Headings with inexact sines keep objects off the boundaries.)
+    obs = _obs(
+        rovers=[(0, 0), (0.3, 2.0)], headings=[math.pi / 2, 0.0], pois=[(-3, 0.2)], values=[1.0]
+    )
+    # rover 1 at (0.3, 2): in rover 0's frame forward 2, left -0.3 -> front-right (q1).
+    # POI at (-3, 0.2): forward 0.2, left 3 -> front-left (q2).
+    np.testing.assert_allclose(obs[0], [0, 1 / 4.09, 0, 0, 0, 0, 1 / 9.04, 0], rtol=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("forward", "left", "q"),
+    [
+        (1.0, 0.0, 2),  # dead ahead: 0 deg starts front-left
+        (0.0, -1.0, 1),  # dead right: -90 deg starts front-right
+        (0.0, 1.0, 3),  # dead left: 90 deg starts behind-left
+        (-1.0, 0.0, 0),  # dead behind: 180 deg wraps to -180, behind-right
+        (-1.0, -0.0, 0),
+        (0.0, 0.0, 2),  # own position: bearing atan2(0, 0) = 0
+        (1.0, 1.0, 2),
+        (-1.0, 1.0, 3),
+        (-1.0, -1.0, 0),
+        (1.0, -1.0, 1),
+    ],
+)
+def test_quadrant_boundaries(forward, left, q):
+    assert quadrants(np.array([forward]), np.array([left]))[0] == q
+
+
+def test_quadrant_matches_the_atan2_definition():
+    rng = np.random.default_rng(0)
+    f, l = rng.standard_normal((2, 5000))
+    b = np.arctan2(l, f)
+    b = np.where(b >= math.pi, -math.pi, b)
+    expected = np.floor((b + math.pi) / (math.pi / 2)).astype(int)
+    np.testing.assert_array_equal(quadrants(f, l), expected)
+
+
+def _reference_observe(rovers, headings, pois, values, d_min):
+    """Plain loops straight from Eqs. 14-16 and the atan2 quadrant definition."""
+    n_teams, n_rovers, _ = rovers.shape
+    out = np.zeros((n_teams, n_rovers, 8))
+    for e in range(n_teams):
+        for i in range(n_rovers):
+            objects = [(rovers[e, j], 1.0, 0) for j in range(n_rovers) if j != i]
+            objects += [(pois[e, k], values[e, k], 4) for k in range(pois.shape[1])]
+            for pos, numerator, base in objects:
+                dx, dy = pos - rovers[e, i]
+                b = math.atan2(dy, dx) - headings[e, i]
+                b = (b + math.pi) % (2 * math.pi) - math.pi
+                q = int((b + math.pi) // (math.pi / 2))
+                delta = max(math.hypot(dx, dy), d_min)
+                out[e, i, base + q] += numerator / delta**2
+    return out
+
+
+def test_batched_equals_plain_loop():
+    rng = np.random.default_rng(1)
+    rovers = rng.uniform(-6, 6, (4, 7, 2))
+    headings = rng.uniform(-math.pi, math.pi, (4, 7))
+    pois = rng.uniform(-15, 15, (4, 3, 2))
+    values = rng.uniform(0.5, 4, (4, 3))
+    np.testing.assert_allclose(
+        observe(rovers, headings, pois, values, 1.0),
+        _reference_observe(rovers, headings, pois, values, 1.0),
+        rtol=2e-5,
+    )
+
+
+def test_relations_shapes_and_self_distance():
+    rel = relate(
+        np.zeros((2, 3, 2)) + [[[0, 0], [1, 0], [5, 5]]],
+        np.zeros((2, 3)),
+        np.ones((2, 4, 2)),
+        d_min=1.0,
+    )
+    assert rel.delta_sq.shape == rel.quadrant.shape == (2, 3, 7)
+    assert rel.delta_sq[0, 2, 2] == 1.0  # own distance is bounded to d_min^2
