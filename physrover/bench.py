@@ -48,4 +48,6 @@ def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> T
         f"world reset + {config.steps} steps, {n_teams} teams x {config.n_rovers} rovers, "
         f"motion={config.motion}"
     )
+    if config.motion == "physics":
+        name += f" (collisions={config.collisions}, substeps={config.substeps})"
     return Timing(name, statistics.median(runs), tuple(runs))

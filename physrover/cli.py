@@ -27,7 +27,7 @@ def _domain_config(args: argparse.Namespace) -> DomainConfig:
     for text in getattr(args, "set", None) or []:
         name, value = parse_override(text)
         values[name] = value
-    for name in ("motion", "n_req"):  # shortcut flags, where a subcommand has them
+    for name in ("motion", "n_req", "collisions"):  # shortcut flags, where a subcommand has them
         if getattr(args, name, None) is not None:
             values[name] = getattr(args, name)
     return DomainConfig.from_dict(values)
@@ -84,6 +84,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="time the world or the learner (benchmarks, not tests)")
     p.add_argument("what", choices=["world"], help="what to time")
     p.add_argument("--motion", choices=["ideal", "physics"], help="motion model")
+    p.add_argument(
+        "--collisions",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="rover-rover collisions under physics (config default: on)",
+    )
     p.add_argument("--teams", type=int, default=50, help="teams stepped together (default 50)")
     p.add_argument("--repeats", type=int, default=20, help="timed runs (default 20)")
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")

@@ -162,6 +162,27 @@ class DomainConfig(_Config):
     motion: str = "ideal"
     """Motion model: "ideal" (the paper's kinematics) or "physics" (pymunk bodies)."""
 
+    # -- physical motion only (motion = "physics"); time unit: one environment step --------
+    collisions: bool = True
+    """Rovers of a team collide with each other (physics only)."""
+    rover_radius: float = 0.2
+    """Radius of a rover's circular body, world units (physics only)."""
+    rover_mass: float = 1.0
+    """Mass of a rover, mass units (physics only); moment of inertia is that of a disc."""
+    max_force: float = 0.5
+    """Largest drive force, mass x world units / step^2: from rest to speed 1 takes
+    rover_mass / max_force steps (physics only)."""
+    max_torque: float = 0.05
+    """Largest steering torque, mass x world units^2 / step^2 (physics only)."""
+    substeps: int = 4
+    """Physics steps per environment step (physics only)."""
+    solver_iterations: int = 10
+    """Iterations of pymunk's contact solver per physics step (physics only)."""
+    walls: bool = False
+    """Square walls around each team's world (physics only)."""
+    wall_half_size: float = 30.0
+    """Half the side of the walled square centred on the origin, world units."""
+
     def __post_init__(self) -> None:
         self._coerce_fields()
         _check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
@@ -195,6 +216,21 @@ class DomainConfig(_Config):
             self.motion in MOTION_MODELS,
             "motion",
             f"must be one of {', '.join(MOTION_MODELS)}; got {self.motion!r}",
+        )
+        for name in ("rover_radius", "rover_mass", "max_force", "max_torque"):
+            value = getattr(self, name)
+            _check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        _check(self.substeps >= 1, "substeps", f"must be >= 1, got {self.substeps}")
+        _check(
+            self.solver_iterations >= 1,
+            "solver_iterations",
+            f"must be >= 1, got {self.solver_iterations}",
+        )
+        inner = self.spawn_radius + 2 * self.rover_radius
+        _check(
+            math.isfinite(self.wall_half_size) and self.wall_half_size > inner,
+            "wall_half_size",
+            f"must exceed spawn_radius + 2 rover_radius = {inner}, got {self.wall_half_size}",
         )
 
     @property

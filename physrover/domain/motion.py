@@ -26,8 +26,9 @@ class IdealMotion:
 
     name = "ideal"
 
-    def reset(self, positions: np.ndarray, headings: np.ndarray) -> None:
+    def reset(self, positions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nothing to rebuild: the idealised model has no state of its own."""
+        return positions, headings
 
     def step(
         self, positions: np.ndarray, headings: np.ndarray, actions: np.ndarray

@@ -159,9 +159,8 @@ class RoverWorld:
             raise ValueError("poi_values must be positive")
 
         self._numerators = numerators(n_rovers, self.poi_values)
-        self.rover_positions = positions
-        self.rover_headings = headings
-        self.motion.reset(positions, headings)
+        # The physical model may push overlapping spawn positions apart.
+        self.rover_positions, self.rover_headings = self.motion.reset(positions, headings)
         self.scores.reset(n_teams, n_rovers, self.poi_values)
         self.t = 0
         return self._observe_and_score()

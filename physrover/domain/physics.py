@@ -1,0 +1,255 @@
+"""Physical rover motion: pymunk bodies with mass, finite force and torque, optional collisions.
+
+Every rover is a dynamic pymunk circle (radius ``rover_radius``, mass ``rover_mass``, the
+moment of inertia of a disc). All E teams live in **one** ``pymunk.Space``, each team in its
+own cell of a grid whose spacing exceeds the distance rovers can travel in an episode, so
+teams never touch; state moves in and out of the space with ``pymunk.batch`` as arrays,
+never with a Python loop over rovers or teams.
+
+Units: lengths in world units, time in environment steps (one step = 1 time unit, split
+into ``substeps`` physics steps of ``dt = 1 / substeps``), forces in mass x units / step^2.
+
+The controller (the convention of this testbed, to compare against the paper's kinematics)
+---------------------------------------------------------------------------------------
+The action ``(a_x, a_y)`` is an **orientation-relative velocity command**: at the start of
+the step it is rotated by the rover's heading into a world-frame velocity setpoint
+``v* = R(heading) a`` (world units per step, so a command held for a step covers at most the
+idealised rover's displacement), and the heading setpoint is the direction of ``v*``
+(unchanged for a zero command), as in the idealised model. Both setpoints are held for the
+step. In every physics step:
+
+- the drive force is ``F = m (v* - v) / dt`` with its norm clipped to ``max_force``;
+- the steering torque is ``T = I (w* - w) / dt`` clipped to ``max_torque``, with the target
+  spin ``w* = sign(e) min(|e| / dt, sqrt(2 alpha_max |e|))`` for the heading error ``e``
+  (the fastest approach that can still brake without overshoot, ``alpha_max = max_torque / I``).
+
+The force and torque are applied as the velocity change they cause over the physics step
+(``dv = F dt / m``, written with ``pymunk.batch``) *before* ``Space.step``: chipmunk
+integrates positions before velocities, so a force written to ``Body.force`` would move the
+body only one physics step later. Applied this way, the integration is semi-implicit Euler
+and, in the limit of unbounded force with one substep, a physical rover follows the
+idealised trajectory exactly (tested). With finite force a rover needs several steps to
+reach full speed, and its speed never exceeds the command (the velocity moves along the
+segment towards ``v*``).
+
+Collisions between rovers of a team are switched by ``collisions`` (shape filters, not
+callbacks); walls (``walls``, static segments of a square of half side ``wall_half_size``)
+always collide with rovers. POIs are not bodies. With collisions on, spawn positions that
+overlap are pushed apart (deterministically) before the episode starts.
+
+Determinism: pymunk caches contact impulses between steps (warm starting). On every reset
+the rovers are first parked apart and the space is stepped ``collision_persistence`` times,
+which drops every cached contact, and the spatial hash index (rebuilt from the current
+positions each step, unlike the default tree, whose shape depends on history) makes the
+order of contacts a function of the positions alone. The same seed thus gives bit-identical
+episodes whatever ran before (tested); building a fresh space instead costs ~20 ms per reset.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymunk
+import pymunk.batch as pb
+
+from physrover.config import DomainConfig
+
+_ROVER = 0b01
+_WALL = 0b10
+_STATE = pb.BodyFields.POSITION | pb.BodyFields.ANGLE  # 3 floats per body: x, y, angle
+_MOTION = pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY  # vx, vy, w
+_ALL = _STATE | _MOTION  # x, y, angle, vx, vy, w
+_ANGLE_MOTION = pb.BodyFields.ANGLE | _MOTION  # angle, vx, vy, w
+_FORCES = pb.BodyFields.FORCE | pb.BodyFields.TORQUE  # fx, fy, torque
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles wrapped to [-pi, pi)."""
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def separate(
+    positions: np.ndarray, min_distance: float, tolerance: float, max_iterations: int = 500
+) -> np.ndarray:
+    """Push overlapping points of each team apart until no pair is closer than
+    ``min_distance - tolerance``.
+
+    Each iteration moves both points of every overlapping pair apart by half the overlap
+    plus ``tolerance`` along the line joining them (coincident points along a direction
+    fixed by their indices); only teams that still overlap are updated. Deterministic;
+    (E, R, 2) in, (E, R, 2) out.
+    """
+    x, y = positions[..., 0].copy(), positions[..., 1].copy()
+    n_rovers = x.shape[1]
+    if n_rovers < 2:
+        return positions.copy()
+    off_diagonal = ~np.eye(n_rovers, dtype=bool)
+    index = np.arange(n_rovers)
+    tie_angle = 2.399963 * (index[:, None] + index[None, :])  # symmetric in i, j ...
+    tie_sign = np.sign(index[:, None] - index[None, :])  # ... times an antisymmetric sign
+    tie_x, tie_y = tie_sign * np.cos(tie_angle), tie_sign * np.sin(tie_angle)
+    active = np.arange(x.shape[0])
+    for _ in range(max_iterations):
+        dx = x[active, :, None] - x[active, None, :]  # (A, R, R): from j to i
+        dy = y[active, :, None] - y[active, None, :]
+        dist = np.sqrt(dx * dx + dy * dy)
+        overlap = np.maximum(min_distance - dist, 0.0) * off_diagonal
+        crowded = overlap.max(axis=(1, 2)) > tolerance
+        if not crowded.any():
+            break
+        active, dx, dy, dist, overlap = (
+            active[crowded],
+            dx[crowded],
+            dy[crowded],
+            dist[crowded],
+            overlap[crowded],
+        )
+        apart = dist > 1e-12
+        scale = np.where(overlap > 0, 0.5 * overlap + tolerance, 0.0) / np.where(apart, dist, 1.0)
+        x[active] += np.where(apart, dx * scale, tie_x * (scale > 0) * min_distance).sum(axis=2)
+        y[active] += np.where(apart, dy * scale, tie_y * (scale > 0) * min_distance).sum(axis=2)
+    return np.stack([x, y], axis=-1)
+
+
+class PhysicsMotion:
+    """Physical motion for E teams of R rovers in one pymunk space; see the module docstring."""
+
+    name = "physics"
+
+    def __init__(self, config: DomainConfig, n_teams: int):
+        self.config = config
+        self.n_teams, self.n_rovers = n_teams, config.n_rovers
+        n_bodies = n_teams * config.n_rovers
+        self.dt = 1.0 / config.substeps
+        self.mass = config.rover_mass
+        self.moment = pymunk.moment_for_circle(config.rover_mass, 0.0, config.rover_radius)
+        self.max_dv = config.max_force * self.dt / self.mass  # per physics step
+        self.max_dw = config.max_torque * self.dt / self.moment
+        self.alpha_max = config.max_torque / self.moment
+
+        self.offsets = self._team_offsets()  # (E, 1, 2) world origin of each team's cell
+        space = pymunk.Space()
+        space.iterations = config.solver_iterations
+        space.collision_slop = 0.01 * config.rover_radius
+        # Rebuilt from positions every step: pair order independent of history (see above).
+        space.use_spatial_hash(4.0 * config.rover_radius, 4 * n_bodies + 1)
+        mask = (_ROVER if config.collisions else 0) | _WALL
+        rover_filter = pymunk.ShapeFilter(categories=_ROVER, mask=mask)
+        bodies, shapes = [], []
+        for origin in self.offsets.reshape(-1, 2).repeat(config.n_rovers, axis=0):
+            body = pymunk.Body(config.rover_mass, self.moment)
+            body.position = tuple(origin)
+            shape = pymunk.Circle(body, config.rover_radius)
+            shape.filter = rover_filter
+            shape.elasticity = 0.0
+            shape.friction = 0.0
+            bodies.append(body)
+            shapes.append(shape)
+        space.add(*bodies, *shapes)
+        if config.walls:
+            space.add(*self._walls(space.static_body))
+        self.space = space
+        self._buffer = pb.Buffer()
+        self._set_buffer = pb.Buffer()
+
+    # -- layout ------------------------------------------------------------------------------
+
+    def _team_offsets(self) -> np.ndarray:
+        cfg = self.config
+        if cfg.walls:
+            reach = cfg.wall_half_size
+        else:  # the farthest a rover can get: commanded speed <= sqrt(2) per step, margin 2x
+            reach = max(cfg.poi_ring_radius, cfg.spawn_radius) + 2.0 * math.sqrt(2) * cfg.steps
+        spacing = 2.0 * reach + 4.0 * cfg.rover_radius + 1.0
+        cols = math.ceil(math.sqrt(self.n_teams))
+        index = np.arange(self.n_teams)
+        grid = np.stack([index % cols, index // cols], axis=-1).astype(np.float64)
+        return (spacing * grid)[:, None, :]
+
+    def _walls(self, static_body: pymunk.Body) -> list[pymunk.Segment]:
+        h = self.config.wall_half_size
+        corners = [(-h, -h), (h, -h), (h, h), (-h, h)]
+        wall_filter = pymunk.ShapeFilter(categories=_WALL, mask=_ROVER)
+        walls = []
+        for ox, oy in self.offsets.reshape(-1, 2):
+            for k in range(4):
+                (ax, ay), (bx, by) = corners[k], corners[(k + 1) % 4]
+                seg = pymunk.Segment(static_body, (ox + ax, oy + ay), (ox + bx, oy + by), 0.05)
+                seg.filter = wall_filter
+                seg.elasticity = 0.0
+                seg.friction = 0.0
+                walls.append(seg)
+        return walls
+
+    # -- batch I/O ---------------------------------------------------------------------------
+
+    def _get(self, fields: pb.BodyFields, width: int) -> np.ndarray:
+        self._buffer.clear()
+        pb.get_space_bodies(self.space, fields, self._buffer)
+        return np.frombuffer(self._buffer.float_buf(), dtype=np.float64).reshape(
+            self.n_teams, self.n_rovers, width
+        )
+
+    def _set(self, fields: pb.BodyFields, values: np.ndarray) -> None:
+        data = np.ascontiguousarray(values, dtype=np.float64).ravel()
+        self._set_buffer.set_float_buf(data)
+        pb.set_space_bodies(self.space, fields, self._set_buffer)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """World positions (E, R, 2), headings (E, R), velocities (E, R, 2), spins (E, R)."""
+        s = self._get(_ALL, 6)
+        return s[..., 0:2] - self.offsets, wrap_angle(s[..., 2]), s[..., 3:5].copy(), s[..., 5]
+
+    # -- motion model interface --------------------------------------------------------------
+
+    def reset(self, positions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Place the rovers at rest; returns the (possibly separated) positions and headings."""
+        cfg = self.config
+        if cfg.collisions:
+            positions = separate(positions, 2.0 * cfg.rover_radius, self.space.collision_slop)
+        # Drop every cached contact: park the rovers apart and let the contacts expire.
+        park = np.zeros((self.n_teams, self.n_rovers, 6))
+        park[..., 0] = 4.0 * cfg.rover_radius * np.arange(self.n_rovers)
+        park[..., :2] += self.offsets
+        self._set(_ALL, park)
+        for _ in range(self.space.collision_persistence + 1):
+            self.space.step(1e-6)
+        start = np.zeros_like(park)
+        start[..., :2] = positions + self.offsets
+        start[..., 2] = headings
+        self._set(_ALL, start)
+        return positions, headings
+
+    def step(
+        self, positions: np.ndarray, headings: np.ndarray, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Advance one environment step under the (E, R, 2) clipped commands."""
+        del positions  # the space holds the state
+        cos_h, sin_h = np.cos(headings), np.sin(headings)
+        fwd, left = actions[..., 0], actions[..., 1]
+        target_v = np.stack([cos_h * fwd - sin_h * left, sin_h * fwd + cos_h * left], -1)
+        moving = (fwd != 0) | (left != 0)
+        target_heading = np.where(moving, np.arctan2(target_v[..., 1], target_v[..., 0]), headings)
+        dt, out = self.dt, np.empty((self.n_teams, self.n_rovers, 3))
+        for substep in range(self.config.substeps):
+            s = self._get(_ANGLE_MOTION, 4)  # angle, vx, vy, w
+            dv = target_v - s[..., 1:3]
+            norm = np.sqrt((dv**2).sum(-1, keepdims=True))
+            dv *= np.minimum(1.0, self.max_dv / np.maximum(norm, 1e-300))
+            error = wrap_angle(target_heading - s[..., 0])
+            target_w = np.sign(error) * np.minimum(
+                np.abs(error) / dt, np.sqrt(2.0 * self.alpha_max * np.abs(error))
+            )
+            dw = np.clip(target_w - s[..., 3], -self.max_dw, self.max_dw)
+            if substep == 0:  # as an impulse: acts within this physics step
+                out[..., 0:2] = s[..., 1:3] + dv
+                out[..., 2] = s[..., 3] + dw
+                self._set(_MOTION, out)
+            else:  # as a force: the contact solver sees it before it moves the body
+                out[..., 0:2] = dv * (self.mass / dt)
+                out[..., 2] = dw * (self.moment / dt)
+                self._set(_FORCES, out)
+            self.space.step(dt)
+        s = self._get(_STATE, 3)
+        return s[..., 0:2] - self.offsets, wrap_angle(s[..., 2])

@@ -1,0 +1,199 @@
+"""Physical motion: the idealised limit, finite force, collisions, isolation, determinism."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from physrover import DomainConfig, RoverEnv, RoverVectorEnv
+from physrover.domain.geometry import relate
+from physrover.domain.physics import separate
+from physrover.domain.sensing import numerators, sense
+from physrover.domain.world import RoverWorld
+
+
+def _rollout(env, seed, actions):
+    obs, info = env.reset(seed=seed)
+    positions, headings, observations = [info["rover_positions"]], [info["rover_headings"]], [obs]
+    for a in actions:
+        obs, _, _, _, info = env.step(a)
+        positions.append(info["rover_positions"])
+        headings.append(info["rover_headings"])
+        observations.append(obs)
+    return np.array(positions), np.array(headings), np.array(observations), info["G"]
+
+
+def test_unbounded_force_one_substep_matches_the_idealised_model():
+    # Tolerance 1e-9 world units / radians: the only difference is floating-point rounding
+    # (teams sit at an offset inside the shared space).
+    fields = dict(n_rovers=6, n_req=2, poi_ring_radius=6.0, steps=30)
+    physics = dict(motion="physics", collisions=False, substeps=1, max_force=1e12, max_torque=1e12)
+    actions = np.random.default_rng(0).uniform(-1, 1, (30, 6, 2))
+    pi, hi, _, gi = _rollout(RoverEnv(**fields), 3, actions)
+    pp, hp, _, gp = _rollout(RoverEnv(**fields, **physics), 3, actions)
+    np.testing.assert_allclose(pp, pi, atol=1e-9)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (hp - hi))), 0.0, atol=1e-9)
+    assert gp == gi and gi > 0
+
+
+def _single_rover(**fields):
+    env = RoverEnv(n_rovers=1, n_req=1, motion="physics", collisions=False, **fields)
+    env.reset(seed=0, options={"rover_positions": [(0.0, 0.0)], "rover_headings": [0.0]})
+    return env
+
+
+def test_finite_force_needs_several_steps_and_never_overshoots_the_command():
+    # max_force 0.5, mass 1: speed grows by at most 0.5 per step; full speed (1, 1) -> sqrt 2.
+    env = _single_rover(max_force=0.5, substeps=4)
+    speeds = []
+    for _ in range(8):
+        env.step(np.array([[1.0, 0.0]]))  # forward: no turning needed
+        speeds.append(np.hypot(*env.unwrapped.world.motion.state()[2][0, 0]))
+    assert speeds[0] == pytest.approx(0.5, abs=1e-9)
+    assert speeds[1] == pytest.approx(1.0, abs=1e-9)
+    assert max(speeds) <= 1.0 + 1e-12
+    env = _single_rover(max_force=0.5, substeps=4)
+    for step in range(6):
+        env.step(np.array([[1.0, 1.0]]))
+        speed = np.hypot(*env.unwrapped.world.motion.state()[2][0, 0])
+        assert speed <= math.sqrt(2) + 1e-12
+        if step == 0:
+            assert speed < math.sqrt(2) - 0.5  # not there after one step
+
+
+def test_heading_turns_through_torque():
+    # A left command asks for heading +90 deg; torque limits the turn rate.
+    env = _single_rover(max_torque=0.01, substeps=4)  # alpha_max = 0.01 / 0.02 = 0.5 rad/step^2
+    env.step(np.array([[0.0, 1.0]]))
+    heading = env.unwrapped.world.rover_headings[0, 0]
+    assert 0.0 < heading < 0.5  # at most alpha t^2 / 2 = 0.25 rad after one step
+    unlimited = _single_rover(max_torque=1e9, substeps=4)
+    unlimited.step(np.array([[0.0, 1.0]]))
+    assert unlimited.unwrapped.world.rover_headings[0, 0] == pytest.approx(math.pi / 2, abs=1e-6)
+
+
+def _min_distance(positions):
+    d = np.linalg.norm(positions[:, :, None] - positions[:, None], axis=-1)
+    n = positions.shape[1]
+    d[:, np.arange(n), np.arange(n)] = np.inf
+    return d.min()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_collisions_keep_rovers_apart(seed):
+    # Discrete collision detection: an overlap appears before it is resolved, so the overlap
+    # after a step is bounded by the closing distance of one physics step (two rovers at full
+    # speed sqrt(2) per step, head on) plus pymunk's slop; with substeps = 16 that is 0.18.
+    substeps, radius = 16, 0.2
+    bound = 2 * math.sqrt(2) / substeps + 0.01 * radius
+    env = RoverVectorEnv(10, motion="physics", collisions=True, substeps=substeps)
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    assert _min_distance(env.world.rover_positions) >= 2 * radius - 0.01 * radius
+    worst = 0.0
+    for _ in range(50):
+        env.step(rng.uniform(-1, 1, (10, 15, 2)))
+        worst = max(worst, 2 * radius - _min_distance(env.world.rover_positions))
+    assert worst <= bound
+
+
+def test_sustained_push_is_held_by_contacts():
+    # Two rovers drive into each other for 10 steps: after the impact, contact holds them
+    # at one diameter apart (within 2% of the radius), they do not sink into each other.
+    env = RoverEnv(n_rovers=2, n_req=1, motion="physics", collisions=True, substeps=4)
+    start = {"rover_positions": [(-2.0, 0.0), (2.0, 0.0)], "rover_headings": [0.0, math.pi]}
+    env.reset(seed=0, options=start)
+    for _ in range(10):
+        _, _, _, _, info = env.step(np.array([[1.0, 0.0], [1.0, 0.0]]))
+    gap = np.linalg.norm(info["rover_positions"][0] - info["rover_positions"][1])
+    assert gap == pytest.approx(0.4, abs=0.004)
+    # Without collisions the same rovers pass through each other.
+    env = RoverEnv(n_rovers=2, n_req=1, motion="physics", collisions=False, substeps=4)
+    env.reset(seed=0, options=start)
+    for _ in range(10):
+        _, _, _, _, info = env.step(np.array([[1.0, 0.0], [1.0, 0.0]]))
+    assert info["rover_positions"][0, 0] > 2.0 and info["rover_positions"][1, 0] < -2.0
+
+
+def test_without_collisions_rovers_may_overlap():
+    env = RoverEnv(n_rovers=2, n_req=1, motion="physics", collisions=False)
+    _, info = env.reset(seed=0, options={"rover_positions": [(0.0, 0.0), (0.1, 0.0)]})
+    np.testing.assert_array_equal(info["rover_positions"][1], [0.1, 0.0])  # not pushed apart
+
+
+def test_spawn_overlaps_are_separated_when_collisions_are_on():
+    pos = np.array([[[0.0, 0.0], [0.1, 0.0], [0.1, 0.0], [3.0, 3.0]]])
+    out = separate(pos, min_distance=0.4, tolerance=1e-3)
+    assert _min_distance(out) >= 0.4 - 1e-3
+    np.testing.assert_array_equal(out[0, 3], [3.0, 3.0])  # far rover untouched
+
+
+def test_teams_never_interact():
+    env = RoverVectorEnv(3, motion="physics", collisions=True)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (50, 3, 15, 2))
+    env.reset(seed=7)
+    ref = [env.step(a)[0] for a in actions]
+    changed = actions.copy()
+    changed[:, 1] = -changed[:, 1]  # team 1 does something else entirely
+    env.reset(seed=7)
+    out = [env.step(a)[0] for a in changed]
+    for team in (0, 2):
+        np.testing.assert_array_equal(np.array(out)[:, team], np.array(ref)[:, team])
+    assert not np.array_equal(np.array(out)[:, 1], np.array(ref)[:, 1])
+
+
+def test_same_seed_is_bit_identical_whatever_ran_before():
+    env = RoverVectorEnv(4, motion="physics", collisions=True)
+    actions = np.random.default_rng(1).uniform(-1, 1, (50, 4, 15, 2))
+    env.reset(seed=11)
+    first = np.array([env.step(a)[0] for a in actions])
+    for seed in (3, 4):  # other episodes in between leave contacts and index state behind
+        env.reset(seed=seed)
+        for a in actions[::-1]:
+            env.step(a)
+    env.reset(seed=11)
+    again = np.array([env.step(a)[0] for a in actions])
+    fresh = RoverVectorEnv(4, motion="physics", collisions=True)
+    fresh.reset(seed=11)
+    new = np.array([fresh.step(a)[0] for a in actions])
+    np.testing.assert_array_equal(first, again)
+    np.testing.assert_array_equal(first, new)
+
+
+def test_scoring_and_sensing_are_the_shared_implementation():
+    # Same rover state in both worlds -> the same observation and in-range mask, bit for bit.
+    cfg = DomainConfig(n_rovers=5, n_req=2)
+    ideal = RoverWorld(cfg, 2)
+    phys = RoverWorld(cfg.replace(motion="physics", collisions=False), 2)
+    gens = lambda: [np.random.default_rng(i) for i in range(2)]  # noqa: E731
+    obs_ideal, obs_phys = ideal.reset(gens()), phys.reset(gens())
+    np.testing.assert_array_equal(obs_ideal, obs_phys)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        phys.step(rng.uniform(-1, 1, (2, 5, 2)))
+    rel = relate(phys.rover_positions, phys.rover_headings, phys.poi_positions, cfg.d_min)
+    np.testing.assert_array_equal(
+        sense(rel, numerators(5, phys.poi_values)).astype(np.float32), phys.observations[5]
+    )
+
+
+def test_check_env_and_vector_equivalence_under_physics():
+    fields = dict(n_rovers=5, n_req=2, motion="physics", collisions=True, steps=15)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(RoverEnv(**fields))
+    venv = RoverVectorEnv(3, **fields)
+    singles = [RoverEnv(**fields) for _ in range(3)]
+    obs, _ = venv.reset(seed=20)
+    for i, env in enumerate(singles):
+        np.testing.assert_array_equal(obs[i], env.reset(seed=20 + i)[0])
+    rng = np.random.default_rng(0)
+    for _ in range(15):
+        act = rng.uniform(-1, 1, (3, 5, 2))
+        obs, rew, _, _, _ = venv.step(act)
+        for i, env in enumerate(singles):
+            o, r, *_ = env.step(act[i])
+            np.testing.assert_allclose(obs[i], o, rtol=1e-6, atol=1e-9)
