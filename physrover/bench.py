@@ -51,3 +51,26 @@ def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> T
     if config.motion == "physics":
         name += f" (collisions={config.collisions}, substeps={config.substeps})"
     return Timing(name, statistics.median(runs), tuple(runs))
+
+
+def bench_train(config, methods, generations: int = 10) -> list[str]:
+    """Median ms per generation for each method, with the mean breakdown by phase."""
+    from physrover.learn.ccea import CCEA
+
+    lines = []
+    for method in methods:
+        ccea = CCEA(config.with_overrides({"method": method}))
+        for _ in range(2):  # warm-up: caches, first critic updates
+            ccea.run_generation()
+        before = dict(ccea.timings)
+        runs = []
+        for _ in range(generations):
+            start = time.perf_counter()
+            ccea.run_generation()
+            runs.append(1000.0 * (time.perf_counter() - start))
+        parts = ", ".join(
+            f"{name} {1000.0 * (ccea.timings[name] - before[name]) / generations:.1f}"
+            for name in ccea.timings
+        )
+        lines.append(f"{method:20s} median {statistics.median(runs):6.1f} ms/generation ({parts})")
+    return lines

@@ -11,26 +11,37 @@ import os
 import sys
 from collections.abc import Sequence
 
-from physrover.config import ConfigError, DomainConfig, load_toml_file, parse_override
+from physrover.config import (
+    METHODS,
+    ConfigError,
+    RunConfig,
+    parse_override,
+)
+from physrover.runs import RunError
 
 
 class UsageError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
 
 
-def _domain_config(args: argparse.Namespace) -> DomainConfig:
-    """DomainConfig from ``--config FILE`` (its [domain] table), then ``--set`` overrides."""
-    values: dict = {}
-    if getattr(args, "config", None):
-        data = load_toml_file(args.config)
-        values.update(data.get(DomainConfig.section, {}))
+def _run_config(args: argparse.Namespace) -> RunConfig:
+    """RunConfig from ``--config FILE`` ([domain] and [learn]), ``--set`` and shortcut flags."""
+    config = RunConfig.load(args.config) if getattr(args, "config", None) else RunConfig()
+    overrides: dict = {}
     for text in getattr(args, "set", None) or []:
         name, value = parse_override(text)
-        values[name] = value
-    for name in ("motion", "n_req", "collisions"):  # shortcut flags, where a subcommand has them
-        if getattr(args, name, None) is not None:
-            values[name] = getattr(args, name)
-    return DomainConfig.from_dict(values)
+        overrides[name] = value
+    for flag, field in (
+        ("motion", "motion"),
+        ("n_req", "n_req"),
+        ("collisions", "collisions"),
+        ("method", "method"),
+        ("seed", "seed"),
+        ("generations", "generations"),
+    ):
+        if getattr(args, flag, None) is not None:
+            overrides[field] = getattr(args, flag)
+    return config.with_overrides(overrides)
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
@@ -44,7 +55,31 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    print(_domain_config(args).to_toml(), end="")
+    print(_run_config(args).to_toml(), end="")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from physrover.runs import train
+
+    _pin_threads(args.threads)
+    if args.resume:
+        given = [args.config, args.set, args.method, args.n_req, args.motion, args.seed, args.out]
+        if any(v is not None for v in given):
+            raise UsageError(
+                "--resume continues a run with its own config; only --generations applies"
+            )
+        out = train(
+            None, args.resume, resume=True, generations=args.generations, progress=not args.quiet
+        )
+    else:
+        config = _run_config(args)
+        cfg = config.learn
+        out = args.out or (
+            f"runs/{cfg.method}_{config.domain.motion}_nreq{config.domain.n_req}_seed{cfg.seed}"
+        )
+        out = train(config, out, progress=not args.quiet)
+    print(f"run directory: {out}")
     return 0
 
 
@@ -62,10 +97,20 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from physrover import bench
 
     _pin_threads(args.threads)
-    cfg = _domain_config(args)
+    config = _run_config(args)
     if args.what == "world":
-        timing = bench.bench_world(cfg, n_teams=args.teams, repeats=args.repeats)
+        timing = bench.bench_world(config.domain, n_teams=args.teams, repeats=args.repeats)
         print(timing.line())
+        return 0
+    if args.what == "train":
+        d, cfg = config.domain, config.learn
+        print(
+            f"train: {d.n_rovers} rovers, {d.n_pois} POIs, k={cfg.population}, "
+            f"{d.steps} steps, motion={d.motion}, median of {args.repeats} generations"
+        )
+        methods = args.methods.split(",") if args.methods else list(METHODS)
+        for line in bench.bench_train(config, methods, generations=args.repeats):
+            print(line)
         return 0
     raise UsageError(f"unknown benchmark {args.what!r}")
 
@@ -77,12 +122,26 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    p = sub.add_parser("info", help="print the resolved config as TOML")
+    p = sub.add_parser("info", help="print the resolved run config ([domain], [learn]) as TOML")
     _add_config_args(p)
     p.set_defaults(func=cmd_info)
 
+    p = sub.add_parser("train", help="train a team with the CCEA and a fitness method")
+    _add_config_args(p)
+    p.add_argument("--method", help="fitness method, e.g. max-critic, mean-critic, D, average")
+    p.add_argument("--n-req", dest="n_req", type=int, help="coupling n_req")
+    p.add_argument("--motion", choices=["ideal", "physics"], help="motion model")
+    p.add_argument("--generations", type=int, help="generations (with --resume: run up to)")
+    p.add_argument("--seed", type=int, help="seed of every random draw")
+    p.add_argument("--out", help="run directory (must not exist or be empty)")
+    p.add_argument("--resume", metavar="DIR", help="continue the run in DIR")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
+    p.set_defaults(func=cmd_train)
+
     p = sub.add_parser("bench", help="time the world or the learner (benchmarks, not tests)")
-    p.add_argument("what", choices=["world"], help="what to time")
+    p.add_argument("what", choices=["world", "train"], help="what to time")
+    p.add_argument("--methods", help="comma-separated methods for 'train' (default: all)")
     p.add_argument("--motion", choices=["ideal", "physics"], help="motion model")
     p.add_argument(
         "--collisions",
@@ -91,7 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="rover-rover collisions under physics (config default: on)",
     )
     p.add_argument("--teams", type=int, default=50, help="teams stepped together (default 50)")
-    p.add_argument("--repeats", type=int, default=20, help="timed runs (default 20)")
+    p.add_argument("--repeats", type=int, default=20, help="timed runs/generations (default 20)")
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
     _add_config_args(p)
     p.set_defaults(func=cmd_bench)
@@ -103,7 +162,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ConfigError, UsageError) as exc:
+    except (ConfigError, UsageError, RunError) as exc:
         print(f"physrover: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -128,6 +128,10 @@ def _check(ok: bool, field: str, message: str) -> None:
         raise ConfigError(field, message)
 
 
+def _check_choice(value: str, choices: tuple[str, ...], field: str) -> None:
+    _check(value in choices, field, f"must be one of {', '.join(choices)}; got {value!r}")
+
+
 # ----------------------------------------------------------------------------------------------
 # The domain
 # ----------------------------------------------------------------------------------------------
@@ -212,11 +216,7 @@ class DomainConfig(_Config):
             f"must be in (0, d_cap={self.d_cap}], got {self.d_min}",
         )
         _check(self.steps >= 1, "steps", f"must be >= 1, got {self.steps}")
-        _check(
-            self.motion in MOTION_MODELS,
-            "motion",
-            f"must be one of {', '.join(MOTION_MODELS)}; got {self.motion!r}",
-        )
+        _check_choice(self.motion, MOTION_MODELS, "motion")
         for name in ("rover_radius", "rover_mass", "max_force", "max_torque"):
             value = getattr(self, name)
             _check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
@@ -298,3 +298,162 @@ def parse_override(text: str) -> tuple[str, Any]:
     except tomllib.TOMLDecodeError:
         value = raw
     return name, value
+
+
+# ----------------------------------------------------------------------------------------------
+# Learning and runs
+# ----------------------------------------------------------------------------------------------
+
+METHODS = (
+    "D",
+    "G",
+    "average",
+    "leniency",
+    "mean-critic",
+    "max-critic",
+    "max-critic-regular",
+    "mean-critic-inexact",
+)
+FEEDBACKS = ("D", "G")
+OPTIMIZERS = ("sgd", "adam")
+
+
+@dataclasses.dataclass(frozen=True)
+class LearnConfig(_Config):
+    """The CCEA and the fitness methods (paper Sections 2.1, 3, 4.2; defaults are the paper's).
+
+    Methods: ``D`` and ``G`` use one episode's feedback as fitness; ``average`` the mean and
+    ``leniency`` the max of the feedback over ``n_samples`` episodes with fresh random
+    teammates; ``mean-critic`` (Eq. 4, regular updates Eqs. 6-8), ``max-critic`` (Eq. 3, inexact
+    updates Eqs. 9-10) and the two other combinations ``max-critic-regular`` and
+    ``mean-critic-inexact`` use a fitness critic.
+    """
+
+    section: ClassVar[str] = "learn"
+
+    method: str = "max-critic"
+    """Fitness method (see the class docstring)."""
+    feedback: str = "D"
+    """Immediate feedback per rover: "D" (difference evaluation, Eq. 1) or "G"."""
+    generations: int = 5000
+    """Generations to run."""
+    seed: int = 0
+    """Seeds every random draw of the run (world, initial policies, evolution, critics)."""
+    population: int = 50
+    """Policies per rover, k."""
+    hidden: int = 32
+    """Hidden units of each policy (8 -> hidden -> 2, ReLU then tanh)."""
+    mutation_rate: float = 0.01
+    """Probability that an offspring's weight is mutated."""
+    mutation_scale: float = 1.0
+    """Scale of the Cauchy distribution added to a mutated weight."""
+    n_samples: int = 10
+    """Episodes per generation for the average and leniency methods."""
+    eval_episodes: int = 10
+    """Fresh episodes of the champion team per generation (the learning curve)."""
+    critic_hidden: int = 80
+    """Hidden units of the intermediate critic (10 -> hidden -> 1, leaky ReLU)."""
+    leaky_slope: float = 0.01
+    """Slope of the critic's leaky ReLU for negative inputs."""
+    critic_lr: float = 5e-6
+    """Critic learning rate alpha_w (Eqs. 7, 9)."""
+    critic_optimizer: str = "sgd"
+    """"sgd": plain mini-batch gradient steps of Eq. 7/9; "adam": Adam on the same gradient."""
+    replay_trajectories: int = 500
+    """Replay capacity, trajectories, for regular updates."""
+    trajectory_batch: int = 7
+    """Trajectories per mini-batch, regular updates."""
+    trajectory_batches: int = 7
+    """Mini-batches per generation, regular updates."""
+    replay_pairs: int = 25000
+    """Replay capacity, state-action pairs, for inexact updates."""
+    pair_batch: int = 50
+    """State-action pairs per mini-batch, inexact updates."""
+    pair_batches: int = 50
+    """Mini-batches per generation, inexact updates."""
+    checkpoint_every: int = 100
+    """Write a checkpoint every this many generations (and at the end)."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        _check_choice(self.method, METHODS, "method")
+        _check_choice(self.feedback, FEEDBACKS, "feedback")
+        _check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
+        _check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
+        _check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
+        _check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
+        for name in (
+            "hidden",
+            "n_samples",
+            "eval_episodes",
+            "critic_hidden",
+            "replay_trajectories",
+            "trajectory_batch",
+            "trajectory_batches",
+            "replay_pairs",
+            "pair_batch",
+            "pair_batches",
+            "checkpoint_every",
+        ):
+            value = getattr(self, name)
+            _check(value >= 1, name, f"must be >= 1, got {value}")
+        _check(
+            0.0 <= self.mutation_rate <= 1.0,
+            "mutation_rate",
+            f"must be in [0, 1], got {self.mutation_rate}",
+        )
+        for name in ("mutation_scale", "critic_lr"):
+            value = getattr(self, name)
+            _check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        _check(
+            0.0 <= self.leaky_slope < 1.0,
+            "leaky_slope",
+            f"must be in [0, 1), got {self.leaky_slope}",
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """Everything a training run needs: the domain and the learner. TOML: [domain], [learn]."""
+
+    domain: DomainConfig = dataclasses.field(default_factory=DomainConfig)
+    learn: LearnConfig = dataclasses.field(default_factory=LearnConfig)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.domain, DomainConfig):
+            raise ConfigError("domain", "must be a DomainConfig")
+        if not isinstance(self.learn, LearnConfig):
+            raise ConfigError("learn", "must be a LearnConfig")
+
+    def to_toml(self) -> str:
+        return dumps_toml({"domain": self.domain.to_dict(), "learn": self.learn.to_dict()})
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
+        unknown = sorted(set(data) - {"domain", "learn"})
+        if unknown:
+            raise ConfigError(unknown[0], "unknown TOML table (expected [domain] and [learn])")
+        return cls(
+            DomainConfig.from_dict(data.get("domain", {})),
+            LearnConfig.from_dict(data.get("learn", {})),
+        )
+
+    @classmethod
+    def from_toml(cls, text: str) -> RunConfig:
+        return cls.from_dict(loads_toml(text))
+
+    @classmethod
+    def load(cls, path: str | Path) -> RunConfig:
+        return cls.from_dict(load_toml_file(path))
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> RunConfig:
+        """Apply ``{field: value}`` by bare field name; each name lives in exactly one table."""
+        domain, learn = {}, {}
+        for name, value in overrides.items():
+            if name in DomainConfig.field_names():
+                domain[name] = value
+            elif name in LearnConfig.field_names():
+                learn[name] = value
+            else:
+                raise ConfigError(name, "unknown config field (not in [domain] or [learn])")
+        return RunConfig(self.domain.replace(**domain), self.learn.replace(**learn))

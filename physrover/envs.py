@@ -219,6 +219,23 @@ class RoverVectorEnv(VectorEnv):
             self._np_random = self._rngs[0]
         return self._reset_world(options), self._infos(self.world.G)
 
+    def rng_states(self) -> list[dict]:
+        """The state of each team's generator (JSON-serialisable), for checkpoints."""
+        if self._rngs is None:
+            raise RuntimeError("call reset() first: the generators are made on the first reset")
+        return [g.bit_generator.state for g in self._rngs]
+
+    def set_rng_states(self, states: Sequence[dict]) -> None:
+        """Restore the generators saved by :meth:`rng_states`."""
+        if len(states) != self.num_envs:
+            raise ValueError(f"need {self.num_envs} generator states, got {len(states)}")
+        self._rngs = []
+        for state in states:
+            gen = np.random.Generator(np.random.PCG64())
+            gen.bit_generator.state = state
+            self._rngs.append(gen)
+        self._np_random = self._rngs[0]
+
     def step(self, actions):
         if self._rngs is None:
             raise RuntimeError("call reset() before step()")

@@ -1,0 +1,5 @@
+"""Learning: policy populations, the CCEA (Algorithm 1), fitness methods and fitness critics.
+
+Reaches the world only through :class:`physrover.envs.RoverVectorEnv` (and the world it
+wraps, for trajectories).
+"""

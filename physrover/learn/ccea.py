@@ -1,0 +1,233 @@
+"""The cooperative coevolutionary algorithm with pluggable fitness (paper Algorithm 1).
+
+One generation, everything batched over teams and rovers (R rovers, k policies each):
+
+1. **Teams.** For each of the method's training rounds, a fresh random permutation of every
+   population forms k teams, so each policy plays exactly once per round. The champion
+   team (every population's best policy by the latest fitness) is added ``eval_episodes``
+   times; all teams run as one batch of episodes on the vector env.
+2. **Feedback.** Each policy's immediate feedback (D or G of its episode) and trajectory.
+3. **Fitness** from the fitness method (D, G, average, leniency or a fitness critic).
+4. **Evolution**: binary tournament with Cauchy mutation (:mod:`physrover.learn.evolution`).
+5. **Critic update** (critic methods only), after evolution as in Algorithm 1.
+
+The learning curve is ``eval_G``: the mean G of the champion team on fresh episodes. The
+champion evaluated in generation g was chosen by the fitness of generation g - 1 (in
+generation 0: policy 0 of each population, i.e. an untrained team); it survived the
+tournament unchanged, so evaluating it alongside generation g's training episodes costs no
+extra rollout.
+
+Random streams, all derived from ``seed``: policy initialisation, team permutations,
+evolution, critic initialisation, critic mini-batches, and the env's per-team start states.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from physrover.config import RunConfig
+from physrover.envs import RoverVectorEnv
+from physrover.learn.critics import PAIR_DIM
+from physrover.learn.evolution import evolve
+from physrover.learn.fitness import make_method
+from physrover.learn.policies import PolicyLayout
+
+
+@dataclass(frozen=True)
+class GenerationStats:
+    """One row of metrics.csv."""
+
+    generation: int
+    eval_G: float
+    train_G_mean: float
+    fitness_mean: float
+    critic_loss: float
+    wall_seconds: float
+
+
+def _rng_from_state(state: dict) -> np.random.Generator:
+    gen = np.random.Generator(np.random.PCG64())
+    gen.bit_generator.state = state
+    return gen
+
+
+class CCEA:
+    """Algorithm 1 on a :class:`RoverVectorEnv`; ``run_generation`` advances one generation."""
+
+    def __init__(self, config: RunConfig):
+        self.config = config
+        d, cfg = config.domain, config.learn
+        self.n_rovers, self.k = d.n_rovers, cfg.population
+        self.layout = PolicyLayout(cfg.hidden)
+        seeds = np.random.SeedSequence(cfg.seed).spawn(6)
+        init_rng, self.team_rng, self.evo_rng, critic_init, self.critic_rng, env_seq = [
+            np.random.default_rng(s) for s in seeds
+        ]
+        self.genomes = self.layout.init((self.n_rovers, self.k), init_rng)
+        self.method = make_method(cfg, self.n_rovers, d.steps, critic_init)
+        self.n_train = self.method.rounds * self.k
+        self.env = RoverVectorEnv(self.n_train + cfg.eval_episodes, config=d)
+        self.env.reset(seed=int(env_seq.integers(2**31)))
+        self.fitness = np.zeros((self.n_rovers, self.k))
+        self.champion = np.zeros(self.n_rovers, dtype=np.int64)
+        self.generation = 0
+        self.wall_seconds = 0.0
+        self.timings = {"rollout": 0.0, "feedback": 0.0, "evolution": 0.0, "critic": 0.0}
+
+    # -- one generation ----------------------------------------------------------------------
+
+    def rollout(self, genome_index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Run one episode per row of (E, R) genome indices; returns G (E,) and D (E, R)."""
+        rovers = np.arange(self.n_rovers)
+        team_genomes = self.genomes[rovers[None, :], genome_index]  # (E, R, P)
+        obs, _ = self.env.reset()
+        for _ in range(self.config.domain.steps):
+            obs, *_ = self.env.step(self.layout.act(team_genomes, obs))
+        return self.env.world.G.copy(), self.env.world.D.copy()
+
+    def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:
+        """(rounds, k, R) values by team -> (rounds, R, k) by policy; ``where[q, r, p]`` is
+        the team in which policy p of rover r played in round q."""
+        return np.take_along_axis(per_team.transpose(0, 2, 1), where, axis=-1)
+
+    def run_generation(self) -> GenerationStats:
+        cfg, R, k = self.config.learn, self.n_rovers, self.k
+        rounds = self.method.rounds
+        start = time.perf_counter()
+        # order[q, r, m]: the policy of rover r in team m of round q.
+        order = np.argsort(self.team_rng.random((rounds, R, k)), axis=-1)
+        team_index = order.transpose(0, 2, 1).reshape(rounds * k, R)
+        champions = np.broadcast_to(self.champion, (cfg.eval_episodes, R))
+        G, D = self.rollout(np.concatenate([team_index, champions]))
+        t_rollout = time.perf_counter()
+
+        where = np.argsort(order, axis=-1)  # where[q, r, p]: the team of policy p
+        feedback_team = D if cfg.feedback == "D" else np.broadcast_to(G[:, None], D.shape)
+        feedback = self._by_policy(feedback_team[: self.n_train].reshape(rounds, k, R), where)
+        team_G = np.broadcast_to(G[: self.n_train, None], (self.n_train, R))
+        G_by_policy = self._by_policy(team_G.reshape(rounds, k, R), where)
+        trajectories = None
+        if self.method.needs_trajectories:
+            obs, act = self.env.world.trajectories()  # (T, E, R, 8), (T, E, R, 2)
+            pairs = np.concatenate([obs[:, :k], act[:, :k]], axis=-1)  # round 0's teams
+            pairs = pairs.transpose(2, 1, 0, 3)  # (R, k teams, T, 10)
+            trajectories = np.take_along_axis(pairs, where[0][:, :, None, None], axis=1)
+            assert trajectories.shape[-1] == PAIR_DIM
+        fitness = self.method.assign(feedback, G_by_policy, trajectories)
+        t_feedback = time.perf_counter()
+
+        _, losers = evolve(
+            self.genomes, fitness, self.evo_rng, cfg.mutation_rate, cfg.mutation_scale
+        )
+        survivors = np.where(np.isnan(fitness), -np.inf, fitness)
+        survivors[np.arange(R)[:, None], losers] = -np.inf
+        self.champion = survivors.argmax(axis=1)
+        self.fitness = fitness
+        t_evolution = time.perf_counter()
+
+        loss = self.method.update(self.critic_rng)
+        end = time.perf_counter()
+
+        for name, seconds in zip(
+            self.timings,
+            (
+                t_rollout - start,
+                t_feedback - t_rollout,
+                t_evolution - t_feedback,
+                end - t_evolution,
+            ),
+            strict=True,
+        ):
+            self.timings[name] += seconds
+        self.wall_seconds += end - start
+        stats = GenerationStats(
+            generation=self.generation,
+            eval_G=float(G[self.n_train :].mean()),
+            train_G_mean=float(G[: self.n_train].mean()),
+            fitness_mean=float(np.nanmean(fitness)),
+            critic_loss=loss,
+            wall_seconds=self.wall_seconds,
+        )
+        self.generation += 1
+        return stats
+
+    def champion_genomes(self) -> np.ndarray:
+        """(R, P) genomes of the current champion team."""
+        return self.genomes[np.arange(self.n_rovers), self.champion].copy()
+
+    # -- checkpoints -------------------------------------------------------------------------
+
+    def state(self) -> tuple[dict[str, np.ndarray], dict]:
+        """Everything needed to continue bit-identically: (arrays, JSON-serialisable meta)."""
+        arrays = {"genomes": self.genomes, "fitness": self.fitness, "champion": self.champion}
+        method_meta = {}
+        for key, value in _flatten(self.method.state()).items():
+            if isinstance(value, np.ndarray):
+                arrays[f"method/{key}"] = value
+            else:
+                method_meta[key] = value
+        meta = {
+            "generation": self.generation,
+            "wall_seconds": self.wall_seconds,
+            "rng": {
+                name: getattr(self, name).bit_generator.state
+                for name in ("team_rng", "evo_rng", "critic_rng")
+            },
+            "env_rng": self.env.rng_states(),
+            "method": method_meta,
+        }
+        return arrays, json.loads(json.dumps(meta))
+
+    def load_state(self, arrays: dict[str, np.ndarray], meta: dict) -> None:
+        self.genomes[...] = arrays["genomes"]
+        self.fitness = np.array(arrays["fitness"])
+        self.champion = np.array(arrays["champion"])
+        flat = {k[len("method/") :]: v for k, v in arrays.items() if k.startswith("method/")}
+        flat.update(meta["method"])
+        self.method.load(_unflatten(flat))
+        self.generation = int(meta["generation"])
+        self.wall_seconds = float(meta["wall_seconds"])
+        for name, state in meta["rng"].items():
+            setattr(self, name, _rng_from_state(state))
+        self.env.set_rng_states(meta["env_rng"])
+
+
+def stats_header() -> list[str]:
+    return list(asdict(GenerationStats(0, 0, 0, 0, 0, 0)))
+
+
+def _flatten(tree, prefix: str = "") -> dict:
+    """Nested dicts/lists -> {"a/0/b": leaf}."""
+    if isinstance(tree, dict):
+        items = tree.items()
+    elif isinstance(tree, list):
+        items = ((str(i), v) for i, v in enumerate(tree))
+    else:
+        return {prefix: tree}
+    out = {}
+    for key, value in items:
+        out.update(_flatten(value, f"{prefix}/{key}" if prefix else str(key)))
+    return out
+
+
+def _unflatten(flat: dict):
+    root: dict = {}
+    for key, value in flat.items():
+        node = root
+        *parents, leaf = key.split("/")
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+
+    def listify(node):
+        if not isinstance(node, dict):
+            return node
+        if node and all(k.isdigit() for k in node):
+            return [listify(node[str(i)]) for i in range(len(node))]
+        return {k: listify(v) for k, v in node.items()}
+
+    return listify(root)

@@ -1,0 +1,57 @@
+"""Populations of feed-forward policies, stored as one stacked genome array.
+
+Each rover r has a population of k policies ``8 -> hidden -> 2`` (ReLU hidden layer, tanh
+output "to simulate motor saturation", paper Section 4.2). A policy's parameters are one
+flat genome vector of length P, laid out as ``W1 (8 x H) | b1 (H) | W2 (H x 2) | b2 (2)``;
+the populations are a (R, k, P) float32 array, so selection, copying and mutation are array
+operations and a batch of teams is evaluated with two batched matrix products.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from physrover.domain.sensing import OBS_DIM
+from physrover.domain.world import ACTION_DIM
+
+
+class PolicyLayout:
+    """Offsets of the weight blocks inside a genome of a policy with ``hidden`` units."""
+
+    def __init__(self, hidden: int, n_in: int = OBS_DIM, n_out: int = ACTION_DIM):
+        self.n_in, self.hidden, self.n_out = n_in, hidden, n_out
+        sizes = [n_in * hidden, hidden, hidden * n_out, n_out]
+        self.bounds = np.concatenate([[0], np.cumsum(sizes)])
+        self.size = int(self.bounds[-1])
+
+    def init(self, shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:
+        """Genomes of ``shape + (P,)``: weights and biases uniform in +-1/sqrt(fan_in)
+        (PyTorch's default for linear layers)."""
+        out = np.empty((*shape, self.size), dtype=np.float32)
+        fan_in = [self.n_in, self.n_in, self.hidden, self.hidden]
+        for block, fan in enumerate(fan_in):
+            lo, hi = self.bounds[block], self.bounds[block + 1]
+            bound = 1.0 / np.sqrt(fan)
+            out[..., lo:hi] = rng.uniform(-bound, bound, (*shape, hi - lo))
+        return out
+
+    def act(self, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:
+        """Actions of every rover of every team.
+
+        Args:
+            genomes: (E, R, P) the genome each rover of each team plays.
+            obs: (E, R, 8) observations.
+
+        Returns:
+            (E, R, 2) float32 actions in (-1, 1).
+        """
+        b = self.bounds
+        batch = genomes.shape[:-1]
+        w1 = genomes[..., b[0] : b[1]].reshape(*batch, self.n_in, self.hidden)
+        w2 = genomes[..., b[2] : b[3]].reshape(*batch, self.hidden, self.n_out)
+        h = (obs[..., None, :].astype(np.float32) @ w1)[..., 0, :]
+        h += genomes[..., b[1] : b[2]]
+        np.maximum(h, 0.0, out=h)
+        out = (h[..., None, :] @ w2)[..., 0, :]
+        out += genomes[..., b[3] : b[4]]
+        return np.tanh(out, out=out)

@@ -1,0 +1,190 @@
+"""Run directories: resolved config, metrics.csv, champion snapshots, resumable state.
+
+Layout of a run directory::
+
+    config.toml                the resolved RunConfig
+    metrics.csv                one row per generation (columns: physrover.learn.ccea)
+    state.npz, state.json      the latest full state (populations, critics, replay buffers,
+                               every RNG state), replaced atomically every checkpoint
+    champions/gen_NNNNNN.npy   (R, P) genomes of the champion team at each checkpoint
+
+``train`` starts a run in a new (or empty) directory, or continues one with ``resume=True``;
+a resumed run ends bit-identical to an uninterrupted one with the same seed.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import tempfile
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from physrover.config import ConfigError, RunConfig
+from physrover.learn.ccea import CCEA, GenerationStats, stats_header
+from physrover.progress import Progress
+
+CONFIG, METRICS, STATE_NPZ, STATE_JSON, CHAMPIONS = (
+    "config.toml",
+    "metrics.csv",
+    "state.npz",
+    "state.json",
+    "champions",
+)
+
+
+class RunError(Exception):
+    """A problem with a run directory, reported to the user in one line."""
+
+
+def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """Write via a temporary file in the same directory, fsync, then rename over ``path``."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        write(tmp_path)
+        with open(tmp_path, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp_path, path)
+    finally:
+        tmp_path.unlink(missing_ok=True)
+
+
+def save_state(run_dir: Path, ccea: CCEA) -> None:
+    arrays, meta = ccea.state()
+
+    def write_npz(p: Path) -> None:
+        with open(p, "wb") as f:
+            np.savez(f, **arrays)
+
+    # Both files name the generation; the JSON is written last, so a crash between the two
+    # writes leaves a newer npz beside an older json, which load_state detects.
+    arrays = {**arrays, "generation": np.array(ccea.generation)}
+    _atomic_write(run_dir / STATE_NPZ, write_npz)
+    _atomic_write(run_dir / STATE_JSON, lambda p: p.write_text(json.dumps(meta)))
+    champions = run_dir / CHAMPIONS
+    champions.mkdir(exist_ok=True)
+
+    def write_champions(p: Path) -> None:
+        with open(p, "wb") as f:
+            np.save(f, ccea.champion_genomes())
+
+    _atomic_write(champions / f"gen_{ccea.generation:06d}.npy", write_champions)
+
+
+def load_state(run_dir: Path, ccea: CCEA) -> None:
+    meta = json.loads((run_dir / STATE_JSON).read_text())
+    with np.load(run_dir / STATE_NPZ) as data:
+        arrays = {k: data[k] for k in data.files}
+    if int(arrays.pop("generation")) != meta["generation"]:
+        raise RunError(f"{run_dir}: {STATE_NPZ} and {STATE_JSON} disagree (interrupted write)")
+    if arrays["genomes"].shape != ccea.genomes.shape:
+        raise RunError(f"{run_dir}: the saved state does not match {CONFIG}")
+    ccea.load_state(arrays, meta)
+
+
+def read_metrics(path: Path) -> list[dict[str, float]]:
+    with open(path, newline="") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def _write_metrics(path: Path, rows: list[dict]) -> None:
+    def write(p: Path) -> None:
+        with open(p, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=stats_header())
+            writer.writeheader()
+            for row in rows:
+                writer.writerow({k: _fmt(row[k]) for k in stats_header()})
+
+    _atomic_write(path, write)
+
+
+def _fmt(value: float) -> str:
+    if isinstance(value, int) or (
+        isinstance(value, float) and value.is_integer() and abs(value) < 1e15
+    ):
+        return str(int(value))
+    return "nan" if isinstance(value, float) and math.isnan(value) else repr(float(value))
+
+
+def prepare_run_dir(out: Path, config: RunConfig) -> None:
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise RunError(f"{out} exists and is not empty; use --resume {out} to continue it")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / CONFIG).write_text(config.to_toml())
+    _write_metrics(out / METRICS, [])
+
+
+def load_run_config(run_dir: Path) -> RunConfig:
+    if not (run_dir / CONFIG).is_file():
+        raise RunError(f"{run_dir} is not a run directory (no {CONFIG})")
+    return RunConfig.load(run_dir / CONFIG)
+
+
+def train(
+    config: RunConfig | None,
+    out: str | Path,
+    *,
+    resume: bool = False,
+    generations: int | None = None,
+    progress: bool = True,
+    on_generation: Callable[[GenerationStats], None] | None = None,
+) -> Path:
+    """Train (or continue) a run in ``out`` up to ``generations`` (default: the config's).
+
+    With ``resume``, ``config`` is ignored and read from ``out``; the run continues from its
+    last checkpoint (dropping metrics rows written after it) up to ``generations``.
+    """
+    out = Path(out)
+    if resume:
+        config = load_run_config(out)
+        if generations is not None and generations != config.learn.generations:
+            config = config.with_overrides({"generations": generations})
+            (out / CONFIG).write_text(config.to_toml())
+    else:
+        if config is None:
+            raise ConfigError("config", "a config is needed to start a run")
+        if generations is not None:
+            config = config.with_overrides({"generations": generations})
+        prepare_run_dir(out, config)
+    ccea = CCEA(config)
+    rows: list[dict] = []
+    if resume and (out / STATE_JSON).exists():
+        load_state(out, ccea)
+        rows = [r for r in read_metrics(out / METRICS) if r["generation"] < ccea.generation]
+        _write_metrics(out / METRICS, rows)
+    elif resume:
+        _write_metrics(out / METRICS, [])  # started but never checkpointed: start over
+
+    total = config.learn.generations
+    bar = (
+        Progress(total, label=f"{config.learn.method} gen", start=ccea.generation)
+        if progress
+        else None
+    )
+    best = max((r["eval_G"] for r in rows), default=float("nan"))
+    with open(out / METRICS, "a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=stats_header())
+        while ccea.generation < total:
+            stats = ccea.run_generation()
+            writer.writerow({k: _fmt(v) for k, v in asdict(stats).items()})
+            best = stats.eval_G if math.isnan(best) else max(best, stats.eval_G)
+            done = ccea.generation
+            if done % config.learn.checkpoint_every == 0 or done == total:
+                f.flush()
+                save_state(out, ccea)
+            if on_generation:
+                on_generation(stats)
+            if bar:
+                bar.update(done, **{"eval G": stats.eval_G, "best G": best})
+    if bar:
+        bar.close()
+    if not (out / STATE_JSON).exists():
+        save_state(out, ccea)
+    return out

@@ -1,0 +1,137 @@
+"""Fitness critics: gradients of Eqs. 7 and 9 against finite differences, aggregation, replay."""
+
+import numpy as np
+import pytest
+
+from physrover.learn.critics import (
+    CriticSettings,
+    FitnessCritic,
+    IntermediateCritics,
+    ReplayBuffer,
+    aggregate,
+)
+
+
+def _critic(aggregation, update, hidden=6, seed=0):
+    settings = CriticSettings(aggregation, update, hidden, 0.01, 1e-3, "sgd", 100, 4, 3)
+    fc = FitnessCritic(2, 5, settings, np.random.default_rng(seed))
+    c = fc.critics
+    c.W1, c.b1, c.b2 = (p.astype(np.float64) for p in c.params())  # float64 for the check
+    c.b2 += 0.3
+    fc.optimizer.params = c.params()
+    return fc
+
+
+def _half_squared_error(fc, items, feedback):
+    delta, _ = fc.errors_and_directions(items, feedback)
+    return 0.5 * (delta**2).sum()
+
+
+@pytest.mark.parametrize(
+    ("aggregation", "update"),
+    [("mean", "regular"), ("max", "regular"), ("max", "inexact"), ("mean", "inexact")],
+)
+def test_update_direction_is_minus_the_gradient_of_half_squared_error(aggregation, update):
+    # Eq. 7 (regular) / Eq. 9 (inexact): sum_k delta_k grad F (or grad C) = -dL/dw with
+    # L = 1/2 sum_k delta_k^2, per critic. Checked by central differences.
+    fc = _critic(aggregation, update)
+    rng = np.random.default_rng(1)
+    shape = (2, 4, 5, 10) if update == "regular" else (2, 4, 10)
+    items = rng.normal(size=shape)
+    feedback = rng.normal(size=(2, 4)) * 3
+    _, directions = fc.errors_and_directions(items, feedback)
+    eps = 1e-6
+    for param, direction in zip(fc.critics.params(), directions, strict=True):
+        flat = param.reshape(-1)
+        numeric = np.zeros_like(flat)
+        for j in range(flat.size):
+            keep = flat[j]
+            flat[j] = keep + eps
+            up = _half_squared_error(fc, items, feedback)
+            flat[j] = keep - eps
+            down = _half_squared_error(fc, items, feedback)
+            flat[j] = keep
+            numeric[j] = -(up - down) / (2 * eps)
+        np.testing.assert_allclose(direction.reshape(-1), numeric, rtol=1e-5, atol=1e-7)
+
+
+def test_output_weights_are_fixed_to_one():
+    # C(x) = sum_h lrelu(z_h) + b2 before and after updates: the hidden-to-output weights are
+    # not parameters at all, and only W1, b1, b2 change.
+    fc = _critic("max", "inexact")
+    rng = np.random.default_rng(2)
+    fc.store(rng.normal(size=(2, 4, 5, 10)), rng.normal(size=(2, 4)))
+    before = [p.copy() for p in fc.critics.params()]
+    fc.update(rng)
+    assert all(not np.array_equal(a, b) for a, b in zip(before, fc.critics.params(), strict=True))
+    c, x = fc.critics, rng.normal(size=(2, 7, 10))
+    z = x @ c.W1 + c.b1[:, None, :]
+    expected = np.where(z > 0, z, 0.01 * z).sum(-1) + c.b2[:, None]
+    np.testing.assert_allclose(c(x), expected, rtol=1e-6)
+
+
+def test_max_aggregation_credits_only_the_argmax_pair():
+    fc = _critic("max", "regular")
+    rng = np.random.default_rng(3)
+    traj = rng.normal(size=(2, 1, 5, 10))
+    feedback = np.array([[2.0], [-1.0]])
+    delta, directions = fc.errors_and_directions(traj, feedback)
+    values = fc.critics(traj[:, 0])  # (2, 5)
+    best = values.argmax(1)
+    only = np.zeros((2, 5))
+    only[np.arange(2), best] = delta[:, 0]
+    expected = fc.critics.weighted_grad(traj[:, 0], only)
+    for got, want in zip(directions, expected, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-12)
+    np.testing.assert_allclose(delta[:, 0], feedback[:, 0] - values.max(1))
+
+
+def test_aggregate_values_and_weights():
+    v = np.array([[1.0, 5.0, 3.0]])
+    assert aggregate(v, "max")[0][0] == 5.0
+    np.testing.assert_array_equal(aggregate(v, "max")[1], [[0, 1, 0]])
+    assert aggregate(v, "mean")[0][0] == 3.0
+    np.testing.assert_allclose(aggregate(v, "mean")[1], [[1 / 3] * 3])
+
+
+def test_intermediate_critic_hand_value():
+    c = IntermediateCritics(1, 2, 0.01, np.random.default_rng(0))
+    c.W1[...] = 0.0
+    c.W1[0, 0] = [1.0, -1.0]  # z = (x0 + 0.5, -x0 - 0.5)
+    c.b1[...] = [0.5, -0.5]
+    c.b2[...] = 2.0
+    x = np.zeros((1, 1, 10), dtype=np.float32)
+    x[0, 0, 0] = 1.5  # z = (2, -2) -> lrelu: 2 and -0.02 -> C = 2 - 0.02 + 2
+    assert c(x)[0, 0] == pytest.approx(3.98, abs=1e-6)
+
+
+def test_replay_buffer_keeps_the_newest_entries():
+    buf = ReplayBuffer(2, capacity=5, item_shape=(1,))
+    for start in (0, 3, 6):  # 9 entries into 5 slots
+        items = np.arange(start, start + 3, dtype=np.float32).reshape(1, 3, 1).repeat(2, 0)
+        buf.add(items, items[..., 0] * 10)
+    assert buf.size == 5
+    assert sorted(buf.items[0, :, 0]) == [4, 5, 6, 7, 8]
+    np.testing.assert_array_equal(buf.feedback[1], buf.items[1, :, 0] * 10)
+    big = np.arange(12, dtype=np.float32).reshape(1, 12, 1).repeat(2, 0)
+    buf.add(big, big[..., 0])
+    assert sorted(buf.items[0, :, 0]) == [7, 8, 9, 10, 11]
+    items, fb = buf.sample(np.random.default_rng(0), 1000)
+    assert set(items[0, :, 0]) == {7, 8, 9, 10, 11}
+    np.testing.assert_array_equal(fb, items[..., 0])
+
+
+def test_paper_capacities_hold_ten_generations():
+    # k = 50 policies x 50 steps: regular stores 50 trajectories, inexact 2500 pairs per
+    # generation; the paper's capacities (500, 25000) keep the last 10 generations.
+    from physrover.config import LearnConfig
+    from physrover.learn.fitness import make_method
+
+    cfg = LearnConfig(method="max-critic")
+    method = make_method(cfg, 2, 50, np.random.default_rng(0))
+    traj = np.zeros((2, 50, 50, 10), dtype=np.float32)
+    for g in range(12):
+        traj[...] = g
+        method.critic.store(traj, np.full((2, 50), float(g)))
+    assert method.critic.buffer.size == 25000
+    assert sorted(set(method.critic.buffer.feedback[0])) == list(range(2, 12))

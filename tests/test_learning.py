@@ -1,0 +1,159 @@
+"""The CCEA end to end: it learns an easy task, resumes bit-identically, and the CLI."""
+
+import numpy as np
+import pytest
+
+from physrover.cli import main
+from physrover.config import ConfigError, RunConfig
+from physrover.learn.ccea import CCEA
+from physrover.runs import read_metrics, train
+
+EASY = dict(n_rovers=3, n_req=1, population=20, steps=50)
+
+
+def test_ccea_learns_an_easy_task():
+    # 3 rovers, a single rover captures (n_req = 1): the untrained champion scores 0, after
+    # 200 generations with D the champion team takes most of the 10 points.
+    ccea = CCEA(RunConfig().with_overrides({**EASY, "method": "D", "seed": 0}))
+    curve = [ccea.run_generation().eval_G for _ in range(200)]
+    assert np.mean(curve[:5]) == 0.0
+    assert np.mean(curve[-20:]) >= 6.0
+
+
+@pytest.mark.parametrize("method", ["average", "leniency", "G", "mean-critic-inexact"])
+def test_every_method_runs_a_generation(method):
+    ccea = CCEA(RunConfig().with_overrides({**EASY, "method": method, "n_samples": 3}))
+    stats = ccea.run_generation()
+    assert np.isfinite(stats.fitness_mean)
+    assert ccea.env.num_envs == ccea.method.rounds * 20 + 10
+
+
+def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
+    ccea = CCEA(RunConfig().with_overrides({**EASY, "method": "D", "n_rovers": 4, "n_req": 2}))
+    seen = {}
+
+    def spy(index):
+        seen["index"] = index
+        return real(index)
+
+    real = ccea.rollout
+    ccea.rollout = spy
+    ccea.run_generation()
+    teams = seen["index"][:20]  # training teams; the rest are the champion's
+    for r in range(4):
+        assert sorted(teams[:, r]) == list(range(20))
+    D = ccea.env.world.D[:20]
+    for r in range(4):
+        np.testing.assert_array_equal(ccea.fitness[r, teams[:, r]], D[:, r])
+
+
+def _comparable(rows):
+    """Rows without the wall time, NaN made comparable (NaN != NaN)."""
+    return [
+        {k: ("nan" if v != v else v) for k, v in row.items() if k != "wall_seconds"} for row in rows
+    ]
+
+
+@pytest.mark.parametrize("method", ["max-critic", "mean-critic"])
+def test_resume_is_bit_identical(tmp_path, method):
+    config = RunConfig().with_overrides(
+        {
+            **EASY,
+            "method": method,
+            "checkpoint_every": 3,
+            "replay_pairs": 700,
+            "seed": 5,
+            "critic_optimizer": "adam",
+            "critic_lr": 1e-3,
+        }
+    )
+    full = train(config, tmp_path / "full", generations=8, progress=False)
+    part = train(config, tmp_path / "part", generations=5, progress=False)
+    train(None, part, resume=True, generations=8, progress=False)
+    assert _comparable(read_metrics(full / "metrics.csv")) == _comparable(
+        read_metrics(part / "metrics.csv")
+    )
+    a, b = np.load(full / "state.npz"), np.load(part / "state.npz")
+    assert set(a.files) == set(b.files)
+    for key in a.files:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    assert len(read_metrics(full / "metrics.csv")) == 8
+
+
+def test_resume_after_a_crash_drops_rows_past_the_checkpoint(tmp_path):
+    config = RunConfig().with_overrides({**EASY, "method": "D", "checkpoint_every": 3})
+    full = train(config, tmp_path / "full", generations=7, progress=False)
+    crashed = tmp_path / "crashed"
+
+    class Crash(Exception):
+        pass
+
+    def crash_at_5(stats):
+        if stats.generation == 4:  # rows 0-4 written, last checkpoint after generation 2
+            raise Crash
+
+    with pytest.raises(Crash):
+        train(config, crashed, generations=7, progress=False, on_generation=crash_at_5)
+    assert len(read_metrics(crashed / "metrics.csv")) == 5
+    train(None, crashed, resume=True, progress=False)
+    assert _comparable(read_metrics(crashed / "metrics.csv")) == _comparable(
+        read_metrics(full / "metrics.csv")
+    )
+
+
+def test_metrics_columns_and_config_round_trip(tmp_path):
+    config = RunConfig().with_overrides({**EASY, "method": "D"})
+    out = train(config, tmp_path / "run", generations=2, progress=False)
+    header = (out / "metrics.csv").read_text().splitlines()[0]
+    assert header == "generation,eval_G,train_G_mean,fitness_mean,critic_loss,wall_seconds"
+    assert RunConfig.load(out / "config.toml") == config.with_overrides({"generations": 2})
+    assert (out / "champions" / "gen_000002.npy").exists()
+
+
+def test_set_resolves_names_across_tables():
+    config = RunConfig().with_overrides({"n_rovers": 6, "population": 20, "n_req": 4})
+    assert (config.domain.n_rovers, config.learn.population, config.domain.n_req) == (6, 20, 4)
+    with pytest.raises(ConfigError, match="popsize: unknown config field"):
+        RunConfig().with_overrides({"popsize": 3})
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["train", "--method", "magic"], "method: must be one of"),
+        (["train", "--config", "missing.toml"], "cannot read missing.toml"),
+        (["train", "--set", "n_req=99"], "n_req: must be in [1, n_rovers=15]"),
+        (["train", "--set", "colour=red"], "colour: unknown config field"),
+        (["train", "--resume", "nowhere"], "nowhere is not a run directory"),
+    ],
+)
+def test_cli_errors_are_one_line(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("physrover: error: ") and message in err
+
+
+def test_cli_train_then_refuses_a_non_empty_dir_and_resumes(tmp_path, capsys):
+    out = tmp_path / "run"
+    args = [
+        "train",
+        "--set",
+        "n_rovers=3",
+        "--set",
+        "n_req=1",
+        "--set",
+        "population=4",
+        "--method",
+        "D",
+        "--generations",
+        "2",
+        "--out",
+        str(out),
+        "--quiet",
+    ]
+    assert main(args) == 0
+    assert main(args) == 2
+    assert "not empty; use --resume" in capsys.readouterr().err
+    assert main(["train", "--resume", str(out), "--generations", "3", "--quiet"]) == 0
+    assert len(read_metrics(out / "metrics.csv")) == 3
