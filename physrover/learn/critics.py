@@ -56,18 +56,31 @@ class IntermediateCritics:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """C for (R, N, 10) pairs -> (R, N) float32."""
-        z = self._hidden(x)
-        # sum_h lrelu(z_h) = slope * sum_h z_h + (1 - slope) * sum_h relu(z_h): two passes
-        # over z instead of the three of np.where.
-        linear = z.sum(-1)
-        np.maximum(z, 0.0, out=z)
-        return self.slope * linear + (1 - self.slope) * z.sum(-1) + self.b2[:, None]
+        return self._output(x, self._hidden(x))
 
-    def weighted_grad(self, x: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
-        """``sum_n u_n grad_w C(x_n)`` for (R, N, 10) pairs and (R, N) weights, per critic."""
-        g = (self._hidden(x) > 0).astype(np.float32)  # lrelu'(z) = slope + (1 - slope) [z > 0]
+    def _output(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """C from the pairs and their pre-activations (``z`` is overwritten).
+
+        ``sum_h lrelu(z_h) = slope * sum_h z_h + (1 - slope) * sum_h relu(z_h)``, and the
+        linear sum is ``x . sum_h W1[:, h] + sum_h b1[h]``: one pass over z instead of three.
+        """
+        linear = (x @ self.W1.sum(-1)[..., None])[..., 0] + self.b1.sum(-1)[:, None]
+        relu_sum = np.maximum(z, 0.0, out=z).sum(-1)
+        return self.slope * linear + (1 - self.slope) * relu_sum + self.b2[:, None]
+
+    def values_and_slopes(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """C(x) (R, N) and lrelu'(z) (R, N, H) from one forward pass."""
+        z = self._hidden(x)
+        g = (z > 0).astype(np.float32)  # lrelu'(z) = slope + (1 - slope) [z > 0]
         g *= 1 - self.slope
         g += self.slope
+        return self._output(x, z), g
+
+    def weighted_grad(self, x: np.ndarray, u: np.ndarray, g: np.ndarray | None = None):
+        """``sum_n u_n grad_w C(x_n)`` for (R, N, 10) pairs and (R, N) weights, per critic;
+        ``g`` (from :meth:`values_and_slopes`) is reused, and overwritten, when given."""
+        if g is None:
+            g = self.values_and_slopes(x)[1]
         g *= u[..., None].astype(np.float32)  # (R, N, H): u_n dC(x_n)/db1
         return [np.swapaxes(x, 1, 2) @ g, g.sum(1), u.sum(1)]
 
@@ -205,15 +218,16 @@ class FitnessCritic:
     ) -> tuple[np.ndarray, list[np.ndarray]]:
         """delta (R, B) and the update direction ``sum_k delta_k grad`` (Eq. 7 or Eq. 9)."""
         if self.settings.update == "inexact":
-            delta = feedback - self.critics(items)  # Eq. 10
-            return delta, self.critics.weighted_grad(items, delta)
+            values, g = self.critics.values_and_slopes(items)
+            delta = feedback - values  # Eq. 10
+            return delta, self.critics.weighted_grad(items, delta, g)
         n_rovers, batch, steps, _ = items.shape
         pairs = items.reshape(n_rovers, batch * steps, PAIR_DIM)
-        values = self.critics(pairs).reshape(n_rovers, batch, steps)
-        F, dF = aggregate(values, self.settings.aggregation)
+        values, g = self.critics.values_and_slopes(pairs)
+        F, dF = aggregate(values.reshape(n_rovers, batch, steps), self.settings.aggregation)
         delta = feedback - F  # Eq. 8
         u = (delta[..., None] * dF).reshape(n_rovers, batch * steps)
-        return delta, self.critics.weighted_grad(pairs, u)
+        return delta, self.critics.weighted_grad(pairs, u, g)
 
     def update(self, rng: np.random.Generator) -> float:
         """The generation's mini-batch updates; returns the mean squared error seen."""
@@ -221,8 +235,12 @@ class FitnessCritic:
         if self.buffer.size == 0:
             return float("nan")
         losses = []
-        for _ in range(s.batches):
-            items, feedback = self.buffer.sample(rng, s.batch)
+        # All mini-batches are drawn up front (one gather instead of one per batch); the
+        # batches are independent uniform draws either way.
+        all_items, all_feedback = self.buffer.sample(rng, s.batches * s.batch)
+        for b in range(s.batches):
+            part = slice(b * s.batch, (b + 1) * s.batch)
+            items, feedback = all_items[:, part], all_feedback[:, part]
             delta, directions = self.errors_and_directions(items, feedback)
             self.optimizer.step(directions)
             losses.append(np.mean(delta**2))
