@@ -309,6 +309,7 @@ METHODS = (
     "G",
     "average",
     "leniency",
+    "hall-of-fame",
     "mean-critic",
     "max-critic",
     "max-critic-regular",
@@ -324,7 +325,8 @@ class LearnConfig(_Config):
 
     Methods: ``D`` and ``G`` use one episode's feedback as fitness; ``average`` the mean and
     ``leniency`` the max of the feedback over ``n_samples`` episodes with fresh random
-    teammates; ``mean-critic`` (Eq. 4, regular updates Eqs. 6-8), ``max-critic`` (Eq. 3, inexact
+    teammates; ``hall-of-fame`` the feedback with the best team found so far as teammates;
+    ``mean-critic`` (Eq. 4, regular updates Eqs. 6-8), ``max-critic`` (Eq. 3, inexact
     updates Eqs. 9-10) and the two other combinations ``max-critic-regular`` and
     ``mean-critic-inexact`` use a fitness critic.
     """

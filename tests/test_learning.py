@@ -20,12 +20,43 @@ def test_ccea_learns_an_easy_task():
     assert np.mean(curve[-20:]) >= 6.0
 
 
-@pytest.mark.parametrize("method", ["average", "leniency", "G", "mean-critic-inexact"])
-def test_every_method_runs_a_generation(method):
+@pytest.mark.parametrize(
+    ("method", "rounds"),
+    [("average", 3), ("leniency", 3), ("G", 1), ("mean-critic-inexact", 1), ("hall-of-fame", 3)],
+)
+def test_every_method_runs_a_generation(method, rounds):
     ccea = CCEA(RunConfig().with_overrides({**EASY, "method": method, "n_samples": 3}))
     stats = ccea.run_generation()
     assert np.isfinite(stats.fitness_mean)
-    assert ccea.env.num_envs == ccea.method.rounds * 20 + 10
+    assert ccea.env.num_envs == rounds * 20 + 10
+
+
+def test_hall_of_fame_tests_each_policy_with_the_best_team():
+    ccea = CCEA(RunConfig().with_overrides({**EASY, "method": "hall-of-fame", "seed": 1}))
+    hof = ccea.method
+    seen = {}
+    real = ccea.rollout
+
+    def spy(index):
+        seen["index"] = index
+        return real(index)
+
+    ccea.rollout = spy
+    for _ in range(30):
+        before = hof.genomes.copy(), hof.score
+        evaluated = ccea.champion_genomes()
+        stats = ccea.run_generation()
+        if stats.eval_G > before[1]:  # the evaluated champion becomes the hall of fame
+            np.testing.assert_array_equal(hof.genomes, evaluated)
+            assert hof.score == stats.eval_G
+        else:
+            np.testing.assert_array_equal(hof.genomes, before[0])
+    # Round q tests rover q's 20 policies; every other rover plays the hall-of-fame slot 20.
+    teams = seen["index"][:60].reshape(3, 20, 3)
+    for q in range(3):
+        assert sorted(teams[q, :, q]) == list(range(20))
+        assert np.all(np.delete(teams[q], q, axis=1) == 20)
+    assert hof.score > 0
 
 
 def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
@@ -54,7 +85,7 @@ def _comparable(rows):
     ]
 
 
-@pytest.mark.parametrize("method", ["max-critic", "mean-critic"])
+@pytest.mark.parametrize("method", ["max-critic", "mean-critic", "hall-of-fame"])
 def test_resume_is_bit_identical(tmp_path, method):
     config = RunConfig().with_overrides(
         {

@@ -3,7 +3,8 @@
 One generation, everything batched over teams and rovers (R rovers, k policies each):
 
 1. **Teams.** For each of the method's training rounds, a fresh random permutation of every
-   population forms k teams, so each policy plays exactly once per round. The champion
+   population forms k teams, so each policy plays exactly once per round (the hall of fame
+   instead pairs each policy with the best team found so far). The champion
    team (every population's best policy by the latest fitness) is added ``eval_episodes``
    times; all teams run as one batch of episodes on the vector env.
 2. **Feedback.** Each policy's immediate feedback (D or G of its episode) and trajectory.
@@ -74,6 +75,7 @@ class CCEA:
         self.env.reset(seed=int(env_seq.integers(2**31)))
         self.fitness = np.zeros((self.n_rovers, self.k))
         self.champion = np.zeros(self.n_rovers, dtype=np.int64)
+        self.method.observe_champion(self.champion_genomes(), -np.inf)  # an untrained team
         self.generation = 0
         self.wall_seconds = 0.0
         self.timings = {"rollout": 0.0, "feedback": 0.0, "evolution": 0.0, "critic": 0.0}
@@ -81,9 +83,16 @@ class CCEA:
     # -- one generation ----------------------------------------------------------------------
 
     def rollout(self, genome_index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Run one episode per row of (E, R) genome indices; returns G (E,) and D (E, R)."""
+        """Run one episode per row of (E, R) genome indices; returns G (E,) and D (E, R).
+
+        Index k and above address the method's extra genomes (the hall of fame), if any.
+        """
         rovers = np.arange(self.n_rovers)
-        team_genomes = self.genomes[rovers[None, :], genome_index]  # (E, R, P)
+        table = self.genomes
+        extra = self.method.extra_genomes()
+        if extra is not None:
+            table = np.concatenate([table, extra], axis=1)
+        team_genomes = table[rovers[None, :], genome_index]  # (E, R, P)
         obs, _ = self.env.reset()
         for _ in range(self.config.domain.steps):
             obs, *_ = self.env.step(self.layout.act(team_genomes, obs))
@@ -99,7 +108,7 @@ class CCEA:
         rounds = self.method.rounds
         start = time.perf_counter()
         # order[q, r, m]: the policy of rover r in team m of round q.
-        order = np.argsort(self.team_rng.random((rounds, R, k)), axis=-1)
+        order = self.method.plan(self.team_rng, R, k)
         team_index = order.transpose(0, 2, 1).reshape(rounds * k, R)
         champions = np.broadcast_to(self.champion, (cfg.eval_episodes, R))
         G, D = self.rollout(np.concatenate([team_index, champions]))
@@ -120,6 +129,10 @@ class CCEA:
         fitness = self.method.assign(feedback, G_by_policy, trajectories)
         t_feedback = time.perf_counter()
 
+        # The champion evaluated in this batch, before evolution can overwrite it.
+        self.method.observe_champion(
+            self.genomes[np.arange(R), self.champion], float(G[self.n_train :].mean())
+        )
         _, losers = evolve(
             self.genomes, fitness, self.evo_rng, cfg.mutation_rate, cfg.mutation_scale
         )
