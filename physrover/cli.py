@@ -7,9 +7,9 @@ line ``physrover: error: ...`` with exit status 2, never as a traceback.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from physrover.config import (
     METHODS,
@@ -17,7 +17,9 @@ from physrover.config import (
     RunConfig,
     parse_override,
 )
+from physrover.render import VideoError
 from physrover.runs import RunError
+from physrover.threads import pin_threads
 
 
 class UsageError(Exception):
@@ -62,7 +64,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from physrover.runs import train
 
-    _pin_threads(args.threads)
+    pin_threads(args.threads)
     if args.resume:
         given = [args.config, args.set, args.method, args.n_req, args.motion, args.seed, args.out]
         if any(v is not None for v in given):
@@ -83,20 +85,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _pin_threads(threads: int) -> None:
-    os.environ["OMP_NUM_THREADS"] = str(threads)
-    try:
-        import torch
-
-        torch.set_num_threads(threads)
-    except ImportError:  # pragma: no cover - torch is a dependency
-        pass
-
-
 def cmd_bench(args: argparse.Namespace) -> int:
     from physrover import bench
 
-    _pin_threads(args.threads)
+    pin_threads(args.threads)
     config = _run_config(args)
     if args.what == "world":
         timing = bench.bench_world(config.domain, n_teams=args.teams, repeats=args.repeats)
@@ -113,6 +105,102 @@ def cmd_bench(args: argparse.Namespace) -> int:
             print(line)
         return 0
     raise UsageError(f"unknown benchmark {args.what!r}")
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from physrover.playback import record_run
+    from physrover.render import RenderConfig
+
+    render = RenderConfig(width=args.size, height=args.size, fps=args.fps)
+    run_dir = Path(args.run_dir)
+    out = args.out or str(run_dir / ("side_by_side.mp4" if args.side_by_side else "episodes.mp4"))
+    path, scores = record_run(
+        run_dir,
+        out,
+        checkpoint=args.checkpoint,
+        episodes=args.episodes,
+        seed=args.seed,
+        side_by_side=args.side_by_side,
+        render=render,
+    )
+    print(f"video: {path}  (G per episode: {', '.join(f'{g:g}' for g in scores)})")
+    return 0
+
+
+def _run_dirs(paths: list[str]) -> list[Path]:
+    """Run directories named, or found below the directories named (e.g. a sweep root)."""
+    found: list[Path] = []
+    for name in paths:
+        path = Path(name)
+        if (path / "config.toml").is_file():
+            found.append(path)
+        elif path.is_dir():
+            found.extend(sorted(p.parent for p in path.rglob("config.toml")))
+        else:
+            raise UsageError(f"{path} is not a directory")
+    if not found:
+        raise UsageError("no run directories (with config.toml) found")
+    return found
+
+
+def cmd_curves(args: argparse.Namespace) -> int:
+    from physrover import plots
+
+    runs = plots.load_runs(_run_dirs(args.run_dirs), by=tuple(args.by or ()))
+    if args.final:
+        table = plots.final_table(runs, args.final, last=args.last)
+        out = plots.plot_final(table, Path(args.out or "final.png"), args.final, args.title)
+    else:
+        table = plots.curve_table(runs, smooth=args.smooth)
+        out = plots.plot_curves(table, Path(args.out or "curves.png"), args.title)
+    print(f"plot: {out}\nnumbers: {out.with_suffix('.csv')}")
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from physrover import plots
+    from physrover.playback import record_run
+    from physrover.runs import train
+
+    pin_threads(1)
+    base = Path(args.out)
+    out, n = base, 1
+    while out.exists() and any(out.iterdir()):
+        n += 1
+        out = base.with_name(f"{base.name}-{n}")
+    config = RunConfig().with_overrides(
+        {"method": "max-critic", "generations": args.generations, "checkpoint_every": 500}
+    )
+    print(f"demo: max-critic on the paper's domain, {args.generations} generations -> {out}")
+    train(config, out, progress=True)
+    table = plots.curve_table(plots.load_runs([out]), smooth=20)
+    curve = plots.plot_curves(
+        table, out / "learning_curve.png", "max-critic, 15 rovers, 4 POIs, n_req = 3 (seed 0)"
+    )
+    video, scores = record_run(out, out / "side_by_side.mp4", episodes=2, side_by_side=True)
+    print(f"learning curve: {curve}")
+    print(f"video: {video}  (G per episode, ideal/physics: {', '.join(f'{g:g}' for g in scores)})")
+    return 0
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from physrover.sweep import Sweep, run_sweep
+
+    sweep = Sweep.load(args.sweep_file)
+    specs = sweep.runs(args.root, seeds=args.seeds)
+    if args.dry_run:
+        for spec in specs:
+            print(spec.out)
+        return 0
+    print(f"sweep {sweep.name}: {len(specs)} runs under {Path(args.root) / sweep.name}")
+    report = run_sweep(specs, workers=args.workers, ray_address=args.ray)
+    print(
+        f"sweep {sweep.name}: {len(report.finished)} run, {report.skipped} already done, "
+        f"{len(report.failed)} failed, {report.seconds:.0f} s"
+    )
+    for name, error in report.failed.items():
+        print(f"  failed: {name}: {error}", file=sys.stderr)
+    return 1 if report.failed else 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -139,6 +227,41 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
     p.set_defaults(func=cmd_train)
 
+    p = sub.add_parser("render", help="record a run's champion team to MP4")
+    p.add_argument("run_dir", help="a run directory")
+    p.add_argument("--checkpoint", type=int, help="generation of the champion (default: last)")
+    p.add_argument("--episodes", type=int, default=3, help="episodes to record (default 3)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    p.add_argument("--out", help="output .mp4 (default: inside the run directory)")
+    p.add_argument("--side-by-side", action="store_true", help="ideal and physics side by side")
+    p.add_argument("--size", type=int, default=640, help="frame width and height, pixels")
+    p.add_argument("--fps", type=int, default=10, help="frames per second")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("curves", help="learning curves (or final scores) with 95% CI")
+    p.add_argument("run_dirs", nargs="+", help="run directories, or directories holding them")
+    p.add_argument("--out", help="output PNG (default curves.png / final.png); CSV beside it")
+    p.add_argument("--by", action="append", metavar="FIELD", help="also group by this field")
+    p.add_argument("--final", metavar="FIELD", help="plot the final score against FIELD")
+    p.add_argument("--last", type=int, default=1, help="--final: average the last N gens")
+    p.add_argument("--smooth", type=int, default=1, help="moving average over N generations")
+    p.add_argument("--title", default="", help="plot title")
+    p.set_defaults(func=cmd_curves)
+
+    p = sub.add_parser("demo", help="short max-critic training, then a curve and a video")
+    p.add_argument("--generations", type=int, default=2000, help="generations (default 2000)")
+    p.add_argument("--out", default="runs/demo", help="run directory (default runs/demo)")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("sweep", help="run a grid of training runs (process pool or Ray)")
+    p.add_argument("sweep_file", help="sweep TOML ([sweep], [base.*], [grid])")
+    p.add_argument("--seeds", type=int, help="seeds per cell (default: the file's)")
+    p.add_argument("--workers", type=int, help="parallel runs (default: CPU count)")
+    p.add_argument("--ray", metavar="ADDRESS", help="run on Ray ('local' starts one here)")
+    p.add_argument("--root", default="runs/sweeps", help="where sweeps go (default runs/sweeps)")
+    p.add_argument("--dry-run", action="store_true", help="list the run directories only")
+    p.set_defaults(func=cmd_sweep)
+
     p = sub.add_parser("bench", help="time the world or the learner (benchmarks, not tests)")
     p.add_argument("what", choices=["world", "train"], help="what to time")
     p.add_argument("--methods", help="comma-separated methods for 'train' (default: all)")
@@ -162,7 +285,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ConfigError, UsageError, RunError) as exc:
+    except (ConfigError, UsageError, RunError, VideoError) as exc:
         print(f"physrover: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -83,20 +83,27 @@ class RoverEnv(gymnasium.Env):
     ``"G"`` (score so far), ``"rover_positions"`` (R, 2), ``"rover_headings"`` (R,) and, on
     the last step, ``"D"`` (R,): each rover's difference evaluation (Eq. 1).
 
+    ## Rendering
+    ``render_mode="rgb_array"``: ``render()`` returns an OpenCV-drawn RGB frame
+    (:mod:`physrover.render`; size from ``render_config``, a ``RenderConfig``).
+
     ## Arguments
-    ``RoverEnv(config=None, render_mode=None, **fields)``: any :class:`DomainConfig` field
-    by name (e.g. ``n_rovers=4, n_req=2``), over an optional base ``config``.
+    ``RoverEnv(config=None, render_mode=None, render_config=None, **fields)``: any
+    :class:`DomainConfig` field by name (e.g. ``n_rovers=4, n_req=2``), over an optional
+    base ``config``.
     """
 
-    metadata = {"render_modes": [], "render_fps": 10}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(
         self,
         config: DomainConfig | Mapping[str, Any] | None = None,
         render_mode: str | None = None,
+        render_config=None,
         **fields: Any,
     ):
         self.config = resolve_config(config, fields)
+        self.render_config = render_config
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
@@ -106,6 +113,17 @@ class RoverEnv(gymnasium.Env):
         self.observation_space, self.action_space = _spaces(self.config)
         self.world = RoverWorld(self.config, n_teams=1)
         self._last_G = 0.0
+
+    def render(self):
+        """An (H, W, 3) uint8 RGB frame of the current state (``render_mode="rgb_array"``)."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() needs RoverEnv(render_mode='rgb_array')")
+            return None
+        from physrover.render import RenderConfig, world_frame
+
+        if self.render_config is None:
+            self.render_config = RenderConfig(fps=self.metadata["render_fps"])
+        return world_frame(self.world, 0, self.render_config)
 
     def _info(self) -> dict[str, Any]:
         w = self.world

@@ -97,7 +97,9 @@ class RoverWorld:
     (E, R), ``poi_positions`` (E, K, 2), ``poi_values`` (E, K); ``t`` is the number of steps
     taken; ``G`` (E,) and ``D`` (E, R) are the scores so far. ``observations`` (steps, E, R, 8)
     and ``actions`` (steps, E, R, 2), float32, hold the trajectory: row t is the pair
-    (s_t, a_t) of step t, valid for t < ``self.t``.
+    (s_t, a_t) of step t, valid for t < ``self.t``; ``position_history`` (steps + 1, E, R, 2)
+    and ``heading_history`` (steps + 1, E, R) the states after reset and every step, valid
+    for rows <= ``self.t``.
     """
 
     def __init__(self, config: DomainConfig, n_teams: int):
@@ -114,6 +116,9 @@ class RoverWorld:
         shape = (config.steps, self.n_teams, self.n_rovers)
         self.observations = np.zeros((*shape, OBS_DIM), dtype=np.float32)
         self.actions = np.zeros((*shape, ACTION_DIM), dtype=np.float32)
+        states = (config.steps + 1, self.n_teams, self.n_rovers)
+        self.position_history = np.zeros((*states, 2))
+        self.heading_history = np.zeros(states)
         self.t = -1  # not reset yet
 
     # -- state -------------------------------------------------------------------------------
@@ -190,6 +195,8 @@ class RoverWorld:
             self.rover_positions, self.rover_headings, self.poi_positions, self.config.d_min
         )
         self.scores.record(in_range(rel.delta_sq[:, :, self.n_rovers :], self.config.d_cap))
+        self.position_history[self.t] = self.rover_positions
+        self.heading_history[self.t] = self.rover_headings
         obs = sense(rel, self._numerators).astype(np.float32)
         if self.t < self.config.steps:
             self.observations[self.t] = obs

@@ -1,0 +1,213 @@
+"""Sweeps: grids of training runs on a local process pool or on a Ray cluster.
+
+A sweep file (TOML) names a base config and a grid::
+
+    [sweep]
+    name = "fig4-7"          # runs go under ROOT/name/ (ROOT: --root, default runs/sweeps)
+    seeds = 5                # seeds 0 .. seeds-1 for every cell (--seeds overrides)
+
+    [base.domain]            # the base RunConfig, as in a run's config.toml
+    n_rovers = 15
+    [base.learn]
+    generations = 1000
+
+    [grid]                   # any config field -> the values to try
+    method = ["D", "average", "mean-critic", "max-critic"]
+    n_req = [3, 4, 5, 6]
+
+Every cell x seed is one ``train`` run in its own directory, named by its grid values and
+seed. Re-running a sweep skips finished runs and resumes interrupted ones from their
+checkpoints; a crashed run is reported with its error and does not stop the others. Each
+worker runs one training at a time with torch/BLAS pinned to one thread.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import shutil
+import sys
+import time
+import traceback
+from collections.abc import Mapping
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from physrover.config import ConfigError, RunConfig, load_toml_file
+from physrover.progress import Progress
+from physrover.threads import pin_threads
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    name: str
+    config_toml: str
+    out: str
+
+
+@dataclass(frozen=True)
+class Sweep:
+    name: str
+    base: RunConfig
+    grid: dict[str, list[Any]]
+    seeds: int
+
+    @classmethod
+    def load(cls, path: str | Path) -> Sweep:
+        data = load_toml_file(path)
+        unknown = sorted(set(data) - {"sweep", "base", "grid"})
+        if unknown:
+            raise ConfigError(unknown[0], "unknown sweep table (known: sweep, base, grid)")
+        meta = data.get("sweep", {})
+        bad = sorted(set(meta) - {"name", "seeds"})
+        if bad:
+            raise ConfigError(bad[0], "unknown [sweep] key (known: name, seeds)")
+        base = RunConfig.from_dict(data.get("base", {}))
+        grid = data.get("grid", {})
+        for field, values in grid.items():
+            if not isinstance(values, list) or not values:
+                raise ConfigError(field, "grid values must be a non-empty list")
+            base.with_overrides({field: values[0]})  # the name must be a config field
+        seeds = meta.get("seeds", 1)
+        if not isinstance(seeds, int) or seeds < 1:
+            raise ConfigError("seeds", f"must be a positive integer, got {seeds!r}")
+        return cls(str(meta.get("name", Path(path).stem)), base, grid, seeds)
+
+    def runs(self, root: str | Path, seeds: int | None = None) -> list[RunSpec]:
+        """Every cell x seed, with its resolved config; invalid cells are config errors."""
+        fields = list(self.grid)
+        specs = []
+        for values in itertools.product(*(self.grid[f] for f in fields)):
+            for seed in range(seeds or self.seeds):
+                overrides = dict(zip(fields, values, strict=True), seed=seed)
+                config = self.base.with_overrides(overrides)
+                name = "_".join(f"{f}={_slug(v)}" for f, v in overrides.items())
+                specs.append(RunSpec(name, config.to_toml(), str(Path(root) / self.name / name)))
+        return specs
+
+
+def _slug(value: Any) -> str:
+    if isinstance(value, (list, tuple)):
+        return "-".join(_slug(v) for v in value)
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def run_status(spec: RunSpec) -> str:
+    """ "done", "partial" (has a checkpoint or a started directory) or "new"."""
+    import json
+
+    out = Path(spec.out)
+    if not out.exists():
+        return "new"
+    state = out / "state.json"
+    if state.exists():
+        generations = RunConfig.from_toml(spec.config_toml).learn.generations
+        done = json.loads(state.read_text())["generation"] >= generations
+        return "done" if done else "partial"
+    return "partial"
+
+
+def run_one(spec: RunSpec) -> tuple[str, float, str | None]:
+    """Train (or resume) one run; returns (name, seconds, error or None). Never raises."""
+    start = time.perf_counter()
+    try:
+        pin_threads(1)
+        from physrover.runs import train
+
+        status = run_status(spec)
+        if status != "done":
+            config = RunConfig.from_toml(spec.config_toml)
+            out = Path(spec.out)
+            if status == "partial":
+                if not (out / "config.toml").exists():  # died before writing anything useful
+                    shutil.rmtree(out)
+                    train(config, out, progress=False)
+                else:
+                    train(None, out, resume=True, generations=config.learn.generations,
+                          progress=False)  # fmt: skip
+            else:
+                train(config, out, progress=False)
+        return spec.name, time.perf_counter() - start, None
+    except Exception as exc:  # a crashed run is reported, the others go on
+        detail = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+        return spec.name, time.perf_counter() - start, detail
+
+
+@dataclass
+class SweepReport:
+    total: int
+    skipped: int
+    finished: list[str]
+    failed: dict[str, str]
+    seconds: float
+
+
+def _display(progress: Progress | None, done: int, running: int, failed: int) -> None:
+    if progress:
+        progress.update(done, running=str(running), failed=str(failed))
+
+
+def run_sweep(
+    specs: list[RunSpec],
+    workers: int | None = None,
+    ray_address: str | None = None,
+    progress: bool = True,
+) -> SweepReport:
+    """Run every spec that is not finished; local process pool, or Ray tasks if an address
+    is given ("local" starts a local Ray instance)."""
+    start = time.perf_counter()
+    todo = [s for s in specs if run_status(s) != "done"]
+    skipped = len(specs) - len(todo)
+    bar = Progress(len(specs), label="sweep runs", start=skipped) if progress else None
+    finished: list[str] = []
+    failed: dict[str, str] = {}
+
+    def record(result: tuple[str, float, str | None]) -> None:
+        name, _, error = result
+        if error is None:
+            finished.append(name)
+        else:
+            failed[name] = error
+            print(f"\nrun failed: {name}: {error}", file=sys.stderr)
+
+    workers = workers or max(1, (os.cpu_count() or 1))
+    if todo and ray_address:
+        _run_ray(todo, ray_address, record, bar, skipped, workers)
+    elif todo:
+        with ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
+            pending = {pool.submit(run_one, spec) for spec in todo}
+            while pending:
+                _display(bar, skipped + len(finished) + len(failed), min(workers, len(pending)),
+                         len(failed))  # fmt: skip
+                done, pending = wait(pending, timeout=1.0, return_when=FIRST_COMPLETED)
+                for future in done:
+                    record(future.result())
+    _display(bar, len(specs), 0, len(failed))
+    if bar:
+        bar.close()
+    return SweepReport(len(specs), skipped, finished, failed, time.perf_counter() - start)
+
+
+def _run_ray(todo, address, record, bar, skipped, workers) -> None:
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError("--ray", "ray is not installed: pip install 'physrover[ray]'") from None
+    started_here = not ray.is_initialized()
+    if started_here:
+        kwargs: Mapping[str, Any] = {"num_cpus": workers} if address == "local" else {}
+        ray.init(address=None if address == "local" else address, include_dashboard=False,
+                 log_to_driver=False, **kwargs)  # fmt: skip
+    try:
+        task = ray.remote(num_cpus=1)(run_one)
+        pending = [task.remote(spec) for spec in todo]
+        while pending:
+            _display(bar, skipped + len(todo) - len(pending), min(workers, len(pending)), 0)
+            done, pending = ray.wait(pending, num_returns=1, timeout=1.0)
+            for ref in done:
+                record(ray.get(ref))
+    finally:
+        if started_here:
+            ray.shutdown()

@@ -1,0 +1,137 @@
+"""Rendering, MP4 writing and learning-curve numbers."""
+
+import csv
+
+import cv2
+import numpy as np
+import pytest
+
+from physrover import RoverEnv
+from physrover.config import RunConfig
+from physrover.plots import curve_table, final_table, load_runs, mean_ci, t975, write_csv
+from physrover.render import RenderConfig, Transform, VideoError, VideoWriter, rover_rgb
+from physrover.runs import prepare_run_dir
+
+
+def _record(path, render, steps=6):
+    env = RoverEnv(n_rovers=3, n_req=2, steps=steps, render_mode="rgb_array",
+                   render_config=render)  # fmt: skip
+    start = {"rover_positions": [(0.0, 0.0), (6.0, 6.0), (-6.0, -6.0)],
+             "rover_headings": [0.0, 0.0, 0.0]}  # fmt: skip
+    env.reset(seed=0, options=start)
+    with VideoWriter(path, render.width, render.height, render.fps) as video:
+        video.write(env.render())
+        for _ in range(steps):
+            env.step(np.array([[0.0, 0.0], [0.0, 0.0], [0.5, 0.0]]))
+            video.write(env.render())
+    return env
+
+
+def test_video_round_trip(tmp_path):
+    render = RenderConfig(width=320, height=240, fps=5, trail=0)
+    path = tmp_path / "ep.mp4"
+    env = _record(path, render)
+    cap = cv2.VideoCapture(str(path))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 7  # steps + 1
+    assert (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (320, 240)
+    assert cap.get(cv2.CAP_PROP_FPS) == pytest.approx(5.0)
+    frames = []
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        frames.append(frame[..., ::-1])  # BGR -> RGB
+    last = frames[-1].astype(int)
+    tf = Transform.fit(env.config, render)
+    for i, pos in enumerate(env.unwrapped.world.rover_positions[0]):
+        col, row = np.round(tf(pos)).astype(int)
+        # Rover 0 stands still at the origin, rover 1 at (6, 6) (mp4v is lossy: +-24 levels).
+        if i < 2:
+            assert np.abs(last[row, col] - rover_rgb(i)).max() <= 24, i
+    # A far corner away from POIs, rovers and the HUD is the background.
+    assert np.abs(last[200, 300] - (246, 246, 246)).max() <= 8
+
+
+def test_wrong_frame_size_raises(tmp_path):
+    with pytest.raises(VideoError, match=r"shape \(240, 320, 3\)"):
+        with VideoWriter(tmp_path / "x.mp4", 320, 240, 10) as video:
+            video.write(np.zeros((240, 321, 3), dtype=np.uint8))
+    with pytest.raises(VideoError, match="uint8"):
+        with VideoWriter(tmp_path / "y.mp4", 320, 240, 10) as video:
+            video.write(np.zeros((240, 320, 3), dtype=np.float32))
+
+
+def test_unwritable_path_raises(tmp_path):
+    with pytest.raises(VideoError, match="no directory"):
+        VideoWriter(tmp_path / "missing" / "x.mp4", 64, 64, 10)
+    (tmp_path / "dir.mp4").mkdir()
+    with pytest.raises(VideoError, match="cannot open"):
+        VideoWriter(tmp_path / "dir.mp4", 64, 64, 10)
+
+
+def test_a_short_file_is_detected(tmp_path):
+    video = VideoWriter(tmp_path / "z.mp4", 64, 64, 10)
+    video.write(np.zeros((64, 64, 3), dtype=np.uint8))
+    video.frames += 1  # pretend a frame went missing
+    with pytest.raises(VideoError, match="holds 1 frames, 2 were written"):
+        video.close()
+
+
+def test_render_hud_and_capture_colour():
+    env = RoverEnv(n_rovers=2, n_req=2, render_mode="rgb_array",
+                   render_config=RenderConfig(width=200, height=200))  # fmt: skip
+    env.reset(seed=0, options={"rover_positions": [(15.0, 0.0), (15.0, 1.0)]})
+    frame = env.render()
+    assert frame.shape == (200, 200, 3) and frame.dtype == np.uint8
+    tf = Transform.fit(env.config, RenderConfig(width=200, height=200))
+    col, row = np.round(tf([15.0, 4.0 - 0.05])).astype(int)  # on POI 1's capture ring, top
+    assert tuple(frame[row, col]) != (246, 246, 246)
+
+
+def test_t_quantiles():
+    assert t975(1) == 12.706 and t975(9) == 2.262
+    assert t975(60) == pytest.approx(2.0003, abs=2e-4)
+    assert t975(1000) == pytest.approx(1.9623, abs=2e-4)
+
+
+def _fake_run(root, name, method, n_req, curve):
+    config = RunConfig().with_overrides({"method": method, "n_req": n_req})
+    prepare_run_dir(root / name, config)
+    with open(root / name / "metrics.csv", "a", newline="") as f:
+        for g, value in enumerate(curve):
+            f.write(f"{g},{value},0,0,nan,0\n")
+    return root / name
+
+
+def test_curve_numbers(tmp_path):
+    runs = [
+        _fake_run(tmp_path, "a", "D", 3, [0.0, 1.0, 2.0]),
+        _fake_run(tmp_path, "b", "D", 3, [2.0, 3.0, 4.0, 9.0]),  # longer: cut to 3
+        _fake_run(tmp_path, "c", "D", 3, [1.0, 2.0, 6.0]),
+        _fake_run(tmp_path, "d", "max-critic", 3, [5.0, 5.0, 5.0]),
+    ]
+    table = curve_table(load_runs(runs))
+    d = table["D"]
+    np.testing.assert_allclose(d["mean"], [1.0, 2.0, 4.0])
+    # sd over seeds at generation 0: sd(0, 2, 1) = 1; half-width = t(2) * 1 / sqrt(3).
+    np.testing.assert_allclose(d["ci"][0], 4.303 / np.sqrt(3))
+    np.testing.assert_allclose(d["ci"][2], 4.303 * 2.0 / np.sqrt(3))
+    assert d["n"] == 3 and np.isnan(table["max-critic"]["ci"]).all()
+    write_csv(table, tmp_path / "c.csv", "generation")
+    rows = list(csv.DictReader(open(tmp_path / "c.csv")))
+    half = repr(float(4.303 * 2 / np.sqrt(3)))
+    expected = {"group": "D", "generation": "2", "mean": "4.0", "ci95_half_width": half, "n": "3"}
+    assert rows[2] == expected
+
+
+def test_final_numbers_by_field(tmp_path):
+    runs = [
+        _fake_run(tmp_path, "a", "D", 3, [0.0, 4.0]),
+        _fake_run(tmp_path, "b", "D", 3, [0.0, 6.0]),
+        _fake_run(tmp_path, "c", "D", 5, [0.0, 1.0]),
+    ]
+    table = final_table(load_runs(runs), "n_req", last=1)
+    np.testing.assert_allclose(table["D"]["x"], [3, 5])
+    np.testing.assert_allclose(table["D"]["mean"], [5.0, 1.0])
+    mean, ci, n = mean_ci(np.array([4.0, 6.0]))
+    assert table["D"]["ci"][0] == ci == pytest.approx(12.706 * np.sqrt(2) / np.sqrt(2))

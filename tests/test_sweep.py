@@ -1,0 +1,108 @@
+"""Sweeps: grid expansion, local pool vs Ray equality, skip and resume, crash reporting."""
+
+import os
+
+import pytest
+
+from physrover.config import ConfigError
+from physrover.runs import read_metrics, train
+from physrover.sweep import Sweep, run_status, run_sweep
+
+SWEEP = """
+[sweep]
+name = "tiny"
+seeds = 2
+
+[base.domain]
+n_rovers = 3
+n_req = 1
+steps = 20
+
+[base.learn]
+generations = 3
+population = 6
+eval_episodes = 2
+checkpoint_every = 2
+
+[grid]
+method = ["D", "max-critic"]
+"""
+
+
+def _sweep(tmp_path, text=SWEEP):
+    path = tmp_path / "tiny.toml"
+    path.write_text(text)
+    return Sweep.load(path)
+
+
+def _metrics(specs):
+    out = {}
+    for spec in specs:
+        rows = read_metrics(os.path.join(spec.out, "metrics.csv"))
+        out[os.path.basename(spec.out)] = [
+            {k: ("nan" if v != v else v) for k, v in r.items() if k != "wall_seconds"} for r in rows
+        ]
+    return out
+
+
+def test_grid_expands_to_cells_times_seeds(tmp_path):
+    specs = _sweep(tmp_path).runs(tmp_path / "root")
+    names = sorted(os.path.basename(s.out) for s in specs)
+    assert names == [
+        "method=D_seed=0", "method=D_seed=1", "method=max-critic_seed=0", "method=max-critic_seed=1"
+    ]  # fmt: skip
+    assert len(_sweep(tmp_path).runs(tmp_path, seeds=3)) == 6
+
+
+def test_bad_sweep_files(tmp_path):
+    with pytest.raises(ConfigError, match="n_reqs: unknown config field"):
+        _sweep(tmp_path, SWEEP.replace('method = ["D", "max-critic"]', "n_reqs = [1, 2]"))
+    with pytest.raises(ConfigError, match="n_req: must be in"):
+        _sweep(tmp_path, SWEEP.replace('method = ["D", "max-critic"]', "n_req = [1, 9]")).runs(
+            tmp_path
+        )
+    with pytest.raises(ConfigError, match="grid values must be a non-empty list"):
+        _sweep(tmp_path, SWEEP.replace('method = ["D", "max-critic"]', 'method = "D"'))
+
+
+def test_pool_and_ray_give_the_same_metrics(tmp_path):
+    pytest.importorskip("ray")
+    sweep = _sweep(tmp_path)
+    pool_specs = sweep.runs(tmp_path / "pool")
+    report = run_sweep(pool_specs, workers=2, progress=False)
+    assert len(report.finished) == 4 and not report.failed
+    ray_specs = sweep.runs(tmp_path / "ray")
+    report = run_sweep(ray_specs, workers=2, ray_address="local", progress=False)
+    assert len(report.finished) == 4 and not report.failed
+    assert _metrics(pool_specs) == _metrics(ray_specs)
+    assert all(len(rows) == 3 for rows in _metrics(pool_specs).values())
+
+
+def test_interrupted_sweep_resumes_and_finished_runs_are_skipped(tmp_path):
+    sweep = _sweep(tmp_path)
+    reference = sweep.runs(tmp_path / "reference")
+    run_sweep(reference, workers=2, progress=False)
+
+    specs = sweep.runs(tmp_path / "interrupted")
+    # Run 0 finished, run 1 stopped after its checkpoint at generation 2, the others untouched.
+    from physrover.config import RunConfig
+
+    train(RunConfig.from_toml(specs[0].config_toml), specs[0].out, progress=False)
+    train(RunConfig.from_toml(specs[1].config_toml), specs[1].out, generations=2, progress=False)
+    assert [run_status(s) for s in specs] == ["done", "partial", "new", "new"]
+    finished_mtime = os.path.getmtime(os.path.join(specs[0].out, "metrics.csv"))
+    report = run_sweep(specs, workers=2, progress=False)
+    assert report.skipped == 1 and len(report.finished) == 3
+    assert os.path.getmtime(os.path.join(specs[0].out, "metrics.csv")) == finished_mtime
+    assert _metrics(specs) == _metrics(reference)
+
+
+def test_a_crashed_run_is_reported_and_the_others_finish(tmp_path):
+    specs = _sweep(tmp_path).runs(tmp_path / "crash")
+    os.makedirs(specs[2].out)
+    with open(os.path.join(specs[2].out, "config.toml"), "w") as f:
+        f.write("[domain]\nn_req = 99\n")  # a corrupt run directory
+    report = run_sweep(specs, workers=2, progress=False)
+    assert list(report.failed) == [os.path.basename(specs[2].out)]
+    assert "n_req" in report.failed[os.path.basename(specs[2].out)]
+    assert len(report.finished) == 3
