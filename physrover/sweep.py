@@ -15,6 +15,12 @@ A sweep file (TOML) names a base config and a grid::
     method = ["D", "average", "mean-critic", "max-critic"]
     n_req = [3, 4, 5, 6]
 
+    [[variants]]             # optional: combinations that are not a product, each crossed
+    motion = "ideal"         # with the grid (here: idealised, and physics without and
+    [[variants]]             # with collisions; "ideal with collisions" would be a copy)
+    motion = "physics"
+    collisions = false
+
 Every cell x seed is one ``train`` run in its own directory, named by its grid values and
 seed. Re-running a sweep skips finished runs and resumes interrupted ones from their
 checkpoints; a crashed run is reported with its error and does not stop the others. Each
@@ -53,13 +59,16 @@ class Sweep:
     base: RunConfig
     grid: dict[str, list[Any]]
     seeds: int
+    variants: tuple[dict[str, Any], ...] = ({},)
 
     @classmethod
     def load(cls, path: str | Path) -> Sweep:
         data = load_toml_file(path)
-        unknown = sorted(set(data) - {"sweep", "base", "grid"})
+        unknown = sorted(set(data) - {"sweep", "base", "grid", "variants"})
         if unknown:
-            raise ConfigError(unknown[0], "unknown sweep table (known: sweep, base, grid)")
+            raise ConfigError(
+                unknown[0], "unknown sweep table (known: sweep, base, grid, variants)"
+            )
         meta = data.get("sweep", {})
         bad = sorted(set(meta) - {"name", "seeds"})
         if bad:
@@ -73,15 +82,20 @@ class Sweep:
         seeds = meta.get("seeds", 1)
         if not isinstance(seeds, int) or seeds < 1:
             raise ConfigError("seeds", f"must be a positive integer, got {seeds!r}")
-        return cls(str(meta.get("name", Path(path).stem)), base, grid, seeds)
+        variants = tuple(data.get("variants", [{}]))
+        for variant in variants:
+            base.with_overrides(variant)  # names and values must be valid
+        name = str(meta.get("name", Path(path).stem))
+        return cls(name, base, grid, seeds, variants)
 
     def runs(self, root: str | Path, seeds: int | None = None) -> list[RunSpec]:
         """Every cell x seed, with its resolved config; invalid cells are config errors."""
         fields = list(self.grid)
         specs = []
-        for values in itertools.product(*(self.grid[f] for f in fields)):
+        cells = itertools.product(itertools.product(*(self.grid[f] for f in fields)), self.variants)
+        for values, variant in cells:
             for seed in range(seeds or self.seeds):
-                overrides = dict(zip(fields, values, strict=True), seed=seed)
+                overrides = {**dict(zip(fields, values, strict=True)), **variant, "seed": seed}
                 config = self.base.with_overrides(overrides)
                 name = "_".join(f"{f}={_slug(v)}" for f, v in overrides.items())
                 specs.append(RunSpec(name, config.to_toml(), str(Path(root) / self.name / name)))

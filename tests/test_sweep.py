@@ -106,3 +106,31 @@ def test_a_crashed_run_is_reported_and_the_others_finish(tmp_path):
     assert list(report.failed) == [os.path.basename(specs[2].out)]
     assert "n_req" in report.failed[os.path.basename(specs[2].out)]
     assert len(report.finished) == 3
+
+
+def test_variants_cross_the_grid(tmp_path):
+    text = (
+        SWEEP
+        + """
+[[variants]]
+motion = "ideal"
+
+[[variants]]
+motion = "physics"
+collisions = false
+"""
+    )
+    specs = _sweep(tmp_path, text).runs(tmp_path, seeds=1)
+    names = sorted(os.path.basename(s.out) for s in specs)
+    assert names == [
+        "method=D_motion=ideal_seed=0",
+        "method=D_motion=physics_collisions=false_seed=0",
+        "method=max-critic_motion=ideal_seed=0",
+        "method=max-critic_motion=physics_collisions=false_seed=0",
+    ]
+    from physrover.config import RunConfig
+
+    physics = RunConfig.from_toml(specs[1].config_toml).domain
+    assert (physics.motion, physics.collisions) == ("physics", False)
+    with pytest.raises(ConfigError, match="motion: must be one of"):
+        _sweep(tmp_path, SWEEP + '\n[[variants]]\nmotion = "teleport"\n')
