@@ -47,7 +47,9 @@ def _run_config(args: argparse.Namespace) -> RunConfig:
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", metavar="FILE.toml", help="config file ([domain] table)")
+    p.add_argument(
+        "--config", metavar="FILE.toml", help="config file ([domain] and [learn] tables)"
+    )
     p.add_argument(
         "--set",
         action="append",

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from physrover.config import ConfigError
 from physrover.runs import METRICS, load_run_config, read_metrics
 
 # t_{0.975, df} for df = 1..30; beyond, the Cornish-Fisher expansion below (error < 1e-4).
@@ -62,7 +63,7 @@ def load_runs(run_dirs: list[str | Path], by: tuple[str, ...] = ()) -> list[Run]
         fields = {**config.domain.to_dict(), **config.learn.to_dict()}
         for name in by:
             if name not in fields:
-                raise ValueError(f"--by {name}: not a config field")
+                raise ConfigError(name, "not a config field (--by)")
         group = " ".join([config.learn.method] + [f"{name}={fields[name]}" for name in by])
         rows = read_metrics(path / METRICS)
         runs.append(Run(path, group, fields, np.array([r["eval_G"] for r in rows])))
@@ -100,7 +101,7 @@ def final_table(runs: list[Run], x: str, last: int = 1) -> dict[str, dict[str, n
     cells: dict[str, dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
     for run in runs:
         if x not in run.fields:
-            raise ValueError(f"--final {x}: not a config field")
+            raise ConfigError(x, "not a config field (--final)")
         if len(run.eval_G):
             cells[run.group][run.fields[x]].append(float(run.eval_G[-last:].mean()))
     table = {}

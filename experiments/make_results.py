@@ -1,0 +1,161 @@
+"""Turn the experiment sweeps into the committed results (run from the repository root).
+
+    python experiments/make_results.py [--root runs/sweeps] [--last 50]
+
+Writes under experiments/results/: learning-curve PNGs with their CSVs (mean eval G and
+95% CI half-width per generation, per group), final-score plots with CSVs, runs.csv (one
+row per run: its config cell, seed, final score, wall time) and cells.md (the table of
+final mean G +- 95% CI per cell that RESULTS.md quotes). "Final score" of a run is its mean
+eval G over its last ``--last`` generations; the CI is over seeds (Student t).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from physrover import plots
+from physrover.runs import read_metrics
+
+OUT = Path("experiments/results")
+
+
+def runs_in(root: Path) -> list[Path]:
+    return sorted(p.parent for p in root.rglob("config.toml"))
+
+
+def label(run: plots.Run, fields: tuple[str, ...]) -> str:
+    parts = [run.fields["method"]]
+    for f in fields:
+        value = run.fields[f]
+        parts.append(f"{f}={str(value).lower() if isinstance(value, bool) else value}")
+    return " ".join(parts)
+
+
+def regroup(runs: list[plots.Run], fields: tuple[str, ...]) -> list[plots.Run]:
+    for run in runs:
+        run.group = label(run, fields)
+    return runs
+
+
+def motion_label(run: plots.Run) -> str:
+    f = run.fields
+    if f["motion"] == "ideal":
+        return "ideal"
+    return "physics+collisions" if f["collisions"] else "physics"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--root", default="runs/sweeps")
+    parser.add_argument("--last", type=int, default=50)
+    args = parser.parse_args()
+    root = Path(args.root)
+    OUT.mkdir(parents=True, exist_ok=True)
+    summary_rows = []
+    cell_lines = []
+
+    def summarise(name: str, runs: list[plots.Run], cell_fields: tuple[str, ...], key=None):
+        cells = defaultdict(list)
+        for run in runs:
+            rows = read_metrics(run.path / "metrics.csv")
+            final = float(run.eval_G[-args.last :].mean())
+            cell = key(run) if key else tuple(run.fields[f] for f in cell_fields)
+            cells[cell].append(final)
+            summary_rows.append(
+                {
+                    "sweep": name,
+                    "run": run.path.name,
+                    "method": run.fields["method"],
+                    "n_req": run.fields["n_req"],
+                    "n_rovers": run.fields["n_rovers"],
+                    "motion": motion_label(run),
+                    "seed": run.fields["seed"],
+                    "generations": len(rows),
+                    "final_G": round(final, 4),
+                    "max_eval_G": float(run.eval_G.max()),
+                    "wall_seconds": round(rows[-1]["wall_seconds"], 1),
+                }
+            )
+        cell_lines.append(f"\n### {name}\n")
+        header = " | ".join(cell_fields) if not key else "cell"
+        cell_lines.append(f"| {header} | final G (mean +- 95% CI) | seeds |")
+        cell_lines.append("|" + "---|" * (len(cell_fields) + 2 if not key else 3))
+        for cell in sorted(cells, key=str):
+            mean, ci, n = plots.mean_ci(np.array(cells[cell]))
+            cols = " | ".join(str(c) for c in cell) if isinstance(cell, tuple) else cell
+            cell_lines.append(f"| {cols} | {float(mean):.2f} +- {float(ci):.2f} | {n} |")
+
+    fig = root / "fig4-7"
+    if fig.exists():
+        runs = plots.load_runs(runs_in(fig))
+        for n_req in sorted({r.fields["n_req"] for r in runs}):
+            subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
+            table = plots.curve_table(subset, smooth=20)
+            plots.plot_curves(
+                table,
+                OUT / f"fig4-6_curves_nreq{n_req}.png",
+                f"15 rovers, 4 POIs, n_req = {n_req} (20-generation moving mean)",
+            )
+        regroup(runs, ())
+        plots.plot_final(
+            plots.final_table(runs, "n_req", last=args.last),
+            OUT / "fig7_final_vs_nreq.png",
+            "n_req",
+            f"15 rovers, 4 POIs: final score (last {args.last} generations)",
+        )
+        summarise("fig4-7", runs, ("method", "n_req"))
+
+    fig = root / "fig8-9"
+    if fig.exists():
+        runs = plots.load_runs(runs_in(fig))
+        for n_req in sorted({r.fields["n_req"] for r in runs}):
+            subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
+            plots.plot_final(
+                plots.final_table(subset, "n_rovers", last=args.last),
+                OUT / f"fig8-9_final_vs_rovers_nreq{n_req}.png",
+                "n_rovers",
+                f"4 POIs, n_req = {n_req}: final score (last {args.last} gens)",
+            )
+        summarise("fig8-9", runs, ("method", "n_req", "n_rovers"))
+
+    fig = root / "physics"
+    if fig.exists():
+        runs = plots.load_runs(runs_in(fig))
+        for run in runs:
+            run.group = f"{run.fields['method']} {motion_label(run)}"
+        for n_req in sorted({r.fields["n_req"] for r in runs}):
+            subset = [r for r in runs if r.fields["n_req"] == n_req]
+            table = plots.curve_table(subset, smooth=20)
+            plots.plot_curves(
+                table,
+                OUT / f"physics_curves_nreq{n_req}.png",
+                f"ideal vs physical motion, n_req = {n_req}",
+            )
+        plots.plot_final(
+            plots.final_table(runs, "n_req", last=args.last),
+            OUT / "physics_final_vs_nreq.png",
+            "n_req",
+            f"ideal vs physical motion: final score (last {args.last} gens)",
+        )
+        summarise(
+            "physics",
+            runs,
+            ("method", "n_req", "motion"),
+            key=lambda r: f"{r.fields['method']} | {r.fields['n_req']} | {motion_label(r)}",
+        )
+
+    with open(OUT / "runs.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))
+        writer.writeheader()
+        writer.writerows(summary_rows)
+    (OUT / "cells.md").write_text("\n".join(cell_lines) + "\n")
+    print(f"wrote {OUT}")
+
+
+if __name__ == "__main__":
+    main()
