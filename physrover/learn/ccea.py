@@ -92,10 +92,10 @@ class CCEA:
         extra = self.method.extra_genomes()
         if extra is not None:
             table = np.concatenate([table, extra], axis=1)
-        team_genomes = table[rovers[None, :], genome_index]  # (E, R, P)
+        weights = self.layout.split(table[rovers[None, :], genome_index])  # (E, R, ...)
         obs, _ = self.env.reset()
         for _ in range(self.config.domain.steps):
-            obs, *_ = self.env.step(self.layout.act(team_genomes, obs))
+            obs, *_ = self.env.step(self.layout.forward(weights, obs))
         return self.env.world.G.copy(), self.env.world.D.copy()
 
     def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:

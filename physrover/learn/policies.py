@@ -35,6 +35,29 @@ class PolicyLayout:
             out[..., lo:hi] = rng.uniform(-bound, bound, (*shape, hi - lo))
         return out
 
+    def split(self, genomes: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(W1, b1, W2, b2) of (..., P) genomes as contiguous arrays, for repeated forwards."""
+        b, batch = self.bounds, genomes.shape[:-1]
+        return (
+            np.ascontiguousarray(genomes[..., b[0] : b[1]].reshape(*batch, self.n_in, self.hidden)),
+            np.ascontiguousarray(genomes[..., b[1] : b[2]]),
+            np.ascontiguousarray(
+                genomes[..., b[2] : b[3]].reshape(*batch, self.hidden, self.n_out)
+            ),
+            np.ascontiguousarray(genomes[..., b[3] : b[4]]),
+        )
+
+    def forward(self, weights: tuple[np.ndarray, ...], obs: np.ndarray) -> np.ndarray:
+        """Actions from :meth:`split` weights of shape (E, R, ...) and (E, R, 8) observations:
+        (E, R, 2) float32 in (-1, 1)."""
+        w1, b1, w2, b2 = weights
+        h = (obs[..., None, :].astype(np.float32) @ w1)[..., 0, :]
+        h += b1
+        np.maximum(h, 0.0, out=h)
+        out = (h[..., None, :] @ w2)[..., 0, :]
+        out += b2
+        return np.tanh(out, out=out)
+
     def act(self, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """Actions of every rover of every team.
 
@@ -45,13 +68,4 @@ class PolicyLayout:
         Returns:
             (E, R, 2) float32 actions in (-1, 1).
         """
-        b = self.bounds
-        batch = genomes.shape[:-1]
-        w1 = genomes[..., b[0] : b[1]].reshape(*batch, self.n_in, self.hidden)
-        w2 = genomes[..., b[2] : b[3]].reshape(*batch, self.hidden, self.n_out)
-        h = (obs[..., None, :].astype(np.float32) @ w1)[..., 0, :]
-        h += genomes[..., b[1] : b[2]]
-        np.maximum(h, 0.0, out=h)
-        out = (h[..., None, :] @ w2)[..., 0, :]
-        out += genomes[..., b[3] : b[4]]
-        return np.tanh(out, out=out)
+        return self.forward(self.split(genomes), obs)
