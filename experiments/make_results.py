@@ -19,13 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from physrover import plots
-from physrover.runs import read_metrics
+from physrover.runs import find_runs, read_metrics
 
 OUT = Path("experiments/results")
-
-
-def runs_in(root: Path) -> list[Path]:
-    return sorted(p.parent for p in root.rglob("config.toml"))
 
 
 def label(run: plots.Run, fields: tuple[str, ...]) -> str:
@@ -92,7 +88,7 @@ def main() -> None:
 
     fig = root / "fig4-7"
     if fig.exists():
-        runs = plots.load_runs(runs_in(fig))
+        runs = plots.load_runs(find_runs([fig]))
         for n_req in sorted({r.fields["n_req"] for r in runs}):
             subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
             table = plots.curve_table(subset, smooth=20)
@@ -112,7 +108,7 @@ def main() -> None:
 
     fig = root / "fig8-9"
     if fig.exists():
-        runs = plots.load_runs(runs_in(fig))
+        runs = plots.load_runs(find_runs([fig]))
         for n_req in sorted({r.fields["n_req"] for r in runs}):
             subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
             plots.plot_final(
@@ -125,7 +121,7 @@ def main() -> None:
 
     fig = root / "physics"
     if fig.exists():
-        runs = plots.load_runs(runs_in(fig))
+        runs = plots.load_runs(find_runs([fig]))
         for run in runs:
             run.group = f"{run.fields['method']} {motion_label(run)}"
         for n_req in sorted({r.fields["n_req"] for r in runs}):

@@ -18,7 +18,7 @@ from physrover.config import (
     parse_override,
 )
 from physrover.render import VideoError
-from physrover.runs import RunError
+from physrover.runs import RunError, find_runs
 from physrover.threads import pin_threads
 
 
@@ -129,26 +129,13 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_dirs(paths: list[str]) -> list[Path]:
-    """Run directories named, or found below the directories named (e.g. a sweep root)."""
-    found: list[Path] = []
-    for name in paths:
-        path = Path(name)
-        if (path / "config.toml").is_file():
-            found.append(path)
-        elif path.is_dir():
-            found.extend(sorted(p.parent for p in path.rglob("config.toml")))
-        else:
-            raise UsageError(f"{path} is not a directory")
-    if not found:
-        raise UsageError("no run directories (with config.toml) found")
-    return found
-
-
 def cmd_curves(args: argparse.Namespace) -> int:
     from physrover import plots
 
-    runs = plots.load_runs(_run_dirs(args.run_dirs), by=tuple(args.by or ()))
+    run_dirs = find_runs(args.run_dirs)
+    if not run_dirs:
+        raise UsageError("no run directories (with config.toml) found")
+    runs = plots.load_runs(run_dirs, by=tuple(args.by or ()))
     if args.final:
         table = plots.final_table(runs, args.final, last=args.last)
         out = plots.plot_final(table, Path(args.out or "final.png"), args.final, args.title)

@@ -121,6 +121,19 @@ def prepare_run_dir(out: Path, config: RunConfig) -> None:
     _write_metrics(out / METRICS, [])
 
 
+def find_runs(paths: list[str | Path]) -> list[Path]:
+    """Run directories named in ``paths``, or found below them (e.g. a sweep's root)."""
+    found: list[Path] = []
+    for path in map(Path, paths):
+        if (path / CONFIG).is_file():
+            found.append(path)
+        elif path.is_dir():
+            found.extend(sorted(p.parent for p in path.rglob(CONFIG)))
+        else:
+            raise RunError(f"{path} is not a directory")
+    return found
+
+
 def load_run_config(run_dir: Path) -> RunConfig:
     if not (run_dir / CONFIG).is_file():
         raise RunError(f"{run_dir} is not a run directory (no {CONFIG})")
