@@ -78,9 +78,9 @@ def main() -> None:
                 }
             )
         cell_lines.append(f"\n### {name}\n")
-        header = " | ".join(cell_fields) if not key else "cell"
+        header = " | ".join(cell_fields)
         cell_lines.append(f"| {header} | final G (mean +- 95% CI) | seeds |")
-        cell_lines.append("|" + "---|" * (len(cell_fields) + 2 if not key else 3))
+        cell_lines.append("|" + "---|" * (len(cell_fields) + 2))
         for cell in sorted(cells, key=str):
             mean, ci, n = plots.mean_ci(np.array(cells[cell]))
             cols = " | ".join(str(c) for c in cell) if isinstance(cell, tuple) else cell
