@@ -81,7 +81,7 @@ def main() -> None:
         header = " | ".join(cell_fields)
         cell_lines.append(f"| {header} | final G (mean +- 95% CI) | seeds |")
         cell_lines.append("|" + "---|" * (len(cell_fields) + 2))
-        for cell in sorted(cells, key=str):
+        for cell in sorted(cells, key=lambda c: c if isinstance(c, tuple) else (c,)):
             mean, ci, n = plots.mean_ci(np.array(cells[cell]))
             cols = " | ".join(str(c) for c in cell) if isinstance(cell, tuple) else cell
             cell_lines.append(f"| {cols} | {float(mean):.2f} +- {float(ci):.2f} | {n} |")
