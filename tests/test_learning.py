@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import comparable_rows
 
 from physrover.cli import main
 from physrover.config import ConfigError, RunConfig
@@ -78,13 +79,6 @@ def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
         np.testing.assert_array_equal(ccea.fitness[r, teams[:, r]], D[:, r])
 
 
-def _comparable(rows):
-    """Rows without the wall time, NaN made comparable (NaN != NaN)."""
-    return [
-        {k: ("nan" if v != v else v) for k, v in row.items() if k != "wall_seconds"} for row in rows
-    ]
-
-
 @pytest.mark.parametrize("method", ["max-critic", "mean-critic", "hall-of-fame"])
 def test_resume_is_bit_identical(tmp_path, method):
     config = RunConfig().with_overrides(
@@ -101,7 +95,7 @@ def test_resume_is_bit_identical(tmp_path, method):
     full = train(config, tmp_path / "full", generations=8, progress=False)
     part = train(config, tmp_path / "part", generations=5, progress=False)
     train(None, part, resume=True, generations=8, progress=False)
-    assert _comparable(read_metrics(full / "metrics.csv")) == _comparable(
+    assert comparable_rows(read_metrics(full / "metrics.csv")) == comparable_rows(
         read_metrics(part / "metrics.csv")
     )
     a, b = np.load(full / "state.npz"), np.load(part / "state.npz")
@@ -127,7 +121,7 @@ def test_resume_after_a_crash_drops_rows_past_the_checkpoint(tmp_path):
         train(config, crashed, generations=7, progress=False, on_generation=crash_at_5)
     assert len(read_metrics(crashed / "metrics.csv")) == 5
     train(None, crashed, resume=True, progress=False)
-    assert _comparable(read_metrics(crashed / "metrics.csv")) == _comparable(
+    assert comparable_rows(read_metrics(crashed / "metrics.csv")) == comparable_rows(
         read_metrics(full / "metrics.csv")
     )
 
