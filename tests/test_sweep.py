@@ -3,6 +3,7 @@
 import os
 
 import pytest
+from conftest import comparable_rows
 
 from physrover.config import ConfigError
 from physrover.runs import read_metrics, train
@@ -39,9 +40,7 @@ def _metrics(specs):
     out = {}
     for spec in specs:
         rows = read_metrics(os.path.join(spec.out, "metrics.csv"))
-        out[os.path.basename(spec.out)] = [
-            {k: ("nan" if v != v else v) for k, v in r.items() if k != "wall_seconds"} for r in rows
-        ]
+        out[os.path.basename(spec.out)] = comparable_rows(rows)
     return out
 
 
