@@ -154,6 +154,13 @@ class RoverEnv(gymnasium.Env):
         return obs[0], reward, False, self.world.done, self._info()
 
 
+def generator_from_state(state: dict) -> np.random.Generator:
+    """A generator restored from ``bit_generator.state`` (PCG64, as gymnasium makes them)."""
+    gen = np.random.Generator(np.random.PCG64())
+    gen.bit_generator.state = state
+    return gen
+
+
 def _team_generators(seed: int | Sequence[int] | None, n: int) -> list[np.random.Generator]:
     """One generator per team, made as gymnasium's ``Env.reset(seed=...)`` makes its own."""
     if seed is None:
@@ -247,11 +254,7 @@ class RoverVectorEnv(VectorEnv):
         """Restore the generators saved by :meth:`rng_states`."""
         if len(states) != self.num_envs:
             raise ValueError(f"need {self.num_envs} generator states, got {len(states)}")
-        self._rngs = []
-        for state in states:
-            gen = np.random.Generator(np.random.PCG64())
-            gen.bit_generator.state = state
-            self._rngs.append(gen)
+        self._rngs = [generator_from_state(state) for state in states]
         self._np_random = self._rngs[0]
 
     def step(self, actions):

@@ -21,6 +21,17 @@ def body_to_world(vectors: np.ndarray, headings: np.ndarray) -> np.ndarray:
     return out
 
 
+def commanded_move(actions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The world-frame vector of (E, R, 2) rover-frame commands and its direction.
+
+    Returns the (E, R, 2) vector and the (E, R) heading it points to, the current heading
+    where the command is zero. Shared by the idealised move and the physical setpoints.
+    """
+    move = body_to_world(actions, headings)
+    moved = (actions[..., 0] != 0) | (actions[..., 1] != 0)
+    return move, np.where(moved, np.arctan2(move[..., 1], move[..., 0]), headings)
+
+
 class IdealMotion:
     """Stateless idealised kinematics; see the module docstring."""
 
@@ -43,7 +54,5 @@ class IdealMotion:
         Returns:
             New positions (E, R, 2) and headings (E, R) in (-pi, pi].
         """
-        move = body_to_world(actions, headings)
-        moved = (actions[..., 0] != 0) | (actions[..., 1] != 0)
-        new_headings = np.where(moved, np.arctan2(move[..., 1], move[..., 0]), headings)
+        move, new_headings = commanded_move(actions, headings)
         return positions + move, new_headings

@@ -54,6 +54,7 @@ import pymunk
 import pymunk.batch as pb
 
 from physrover.config import DomainConfig
+from physrover.domain.motion import commanded_move
 
 _ROVER = 0b01
 _WALL = 0b10
@@ -226,11 +227,7 @@ class PhysicsMotion:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Advance one environment step under the (E, R, 2) clipped commands."""
         del positions  # the space holds the state
-        cos_h, sin_h = np.cos(headings), np.sin(headings)
-        fwd, left = actions[..., 0], actions[..., 1]
-        target_v = np.stack([cos_h * fwd - sin_h * left, sin_h * fwd + cos_h * left], -1)
-        moving = (fwd != 0) | (left != 0)
-        target_heading = np.where(moving, np.arctan2(target_v[..., 1], target_v[..., 0]), headings)
+        target_v, target_heading = commanded_move(actions, headings)
         dt, out = self.dt, np.empty((self.n_teams, self.n_rovers, 3))
         for substep in range(self.config.substeps):
             s = self._get(_ANGLE_MOTION, 4)  # angle, vx, vy, w

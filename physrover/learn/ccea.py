@@ -26,12 +26,12 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
 from physrover.config import RunConfig
-from physrover.envs import RoverVectorEnv
+from physrover.envs import RoverVectorEnv, generator_from_state
 from physrover.learn.critics import PAIR_DIM
 from physrover.learn.evolution import evolve
 from physrover.learn.fitness import make_method
@@ -48,12 +48,6 @@ class GenerationStats:
     fitness_mean: float
     critic_loss: float
     wall_seconds: float
-
-
-def _rng_from_state(state: dict) -> np.random.Generator:
-    gen = np.random.Generator(np.random.PCG64())
-    gen.bit_generator.state = state
-    return gen
 
 
 class CCEA:
@@ -205,12 +199,12 @@ class CCEA:
         self.generation = int(meta["generation"])
         self.wall_seconds = float(meta["wall_seconds"])
         for name, state in meta["rng"].items():
-            setattr(self, name, _rng_from_state(state))
+            setattr(self, name, generator_from_state(state))
         self.env.set_rng_states(meta["env_rng"])
 
 
 def stats_header() -> list[str]:
-    return list(asdict(GenerationStats(0, 0, 0, 0, 0, 0)))
+    return [f.name for f in fields(GenerationStats)]
 
 
 def _flatten(tree, prefix: str = "") -> dict:
