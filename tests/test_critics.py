@@ -13,8 +13,10 @@ from physrover.learn.critics import (
 
 
 def _critic(aggregation, update, hidden=6, seed=0):
+    # The numpy reference in float64: these tests check its hand-written gradients; the
+    # compiled kernels are checked against it in test_kernels.py.
     settings = CriticSettings(aggregation, update, hidden, 0.01, 1e-3, "sgd", 100, 4, 3)
-    fc = FitnessCritic(2, 5, settings, np.random.default_rng(seed))
+    fc = FitnessCritic(2, 5, settings, np.random.default_rng(seed), engine="numpy")
     c = fc.critics
     c.W1, c.b1, c.b2 = (p.astype(np.float64) for p in c.params())  # float64 for the check
     c.b2 += 0.3

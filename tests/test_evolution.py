@@ -1,7 +1,9 @@
 """Binary tournament with Cauchy mutation: selection, copying, mutation statistics."""
 
 import numpy as np
+import pytest
 
+from physrover.engine import ENGINES
 from physrover.learn.evolution import evolve, tournament_pairs
 from physrover.learn.policies import PolicyLayout
 
@@ -54,9 +56,10 @@ def test_odd_population_keeps_its_size():
     assert winners.shape == (2, 3) and genomes.shape[1] == 7
 
 
-def test_policy_forward_matches_a_plain_loop():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_policy_forward_matches_a_plain_loop(engine):
     rng = np.random.default_rng(4)
-    layout = PolicyLayout(5)
+    layout = PolicyLayout(5, engine=engine)
     genomes = layout.init((3, 2), rng)
     obs = rng.random((3, 2, 8)).astype(np.float32)
     out = layout.act(genomes, obs)

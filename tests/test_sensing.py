@@ -5,12 +5,41 @@ import math
 import numpy as np
 import pytest
 
+from physrover.domain import kernels
 from physrover.domain.geometry import quadrants, relate
 from physrover.domain.sensing import observe
+from physrover.engine import ENGINES
 
 
-def _obs(rovers, headings, pois, values, d_min=1.0):
-    return observe(
+def compiled_observe(rovers, headings, pois, values, d_min):
+    """Observations from the compiled kernel (same arguments as ``sensing.observe``)."""
+    n_teams, n_rovers, _ = rovers.shape
+    n_pois = pois.shape[1]
+    obs = np.empty((n_teams, n_rovers, 8), dtype=np.float32)
+    kernels.observe_and_score(
+        *(np.ascontiguousarray(a, dtype=float) for a in (rovers, headings, pois, values)),
+        d_min,
+        4.0,
+        3,
+        0,
+        np.zeros((n_teams, n_pois), dtype=bool),
+        np.zeros((n_teams, n_rovers, n_pois), dtype=bool),
+        np.full((n_teams, n_pois), -1),
+        obs,
+    )
+    return obs
+
+
+OBSERVE = {"numpy": observe, "numba": compiled_observe}
+
+
+@pytest.fixture(params=ENGINES)
+def engine(request):
+    return request.param
+
+
+def _obs(rovers, headings, pois, values, d_min=1.0, engine="numpy"):
+    return OBSERVE[engine](
         np.array([rovers], dtype=float),
         np.array([headings], dtype=float),
         np.array([pois], dtype=float),
@@ -19,7 +48,7 @@ def _obs(rovers, headings, pois, values, d_min=1.0):
     )[0]
 
 
-def test_hand_worked_observation():
+def test_hand_worked_observation(engine):
     # Rover 0 at the origin facing +x. Rover 1 dead ahead at distance 2 -> front-left (q2),
     # 1/4. Rover 2 dead right at 0.5 < d_min -> front-right (q1), 1/d_min^2 = 1.
     # POI V=2 dead behind at 1 -> behind-right (q0), 2/1. POI V=4 dead left at 3 ->
@@ -29,6 +58,7 @@ def test_hand_worked_observation():
         headings=[0.0, 0.0, 0.0],
         pois=[(-1, 0), (0, 3)],
         values=[2.0, 4.0],
+        engine=engine,
     )
     np.testing.assert_allclose(obs[0], [0, 1.0, 0.25, 0, 2.0, 0, 0, 4 / 9], rtol=1e-6)
     # Rover 1 (facing +x at (2, 0)): rover 0 dead behind (q0) at 2 -> 1/4; rover 2 behind and
@@ -37,7 +67,7 @@ def test_hand_worked_observation():
     np.testing.assert_allclose(obs[1], [0.25 + 1 / 4.25, 0, 0, 0, 2 / 9, 0, 0, 4 / 13], rtol=1e-6)
 
 
-def test_d_min_bounds_the_distance():
+def test_d_min_bounds_the_distance(engine):
     # Coincident and very close objects both count as 1/d_min^2, never more.
     obs = _obs(
         rovers=[(0, 0), (0.01, 0.0), (0.0, 0.0)],
@@ -45,17 +75,22 @@ def test_d_min_bounds_the_distance():
         pois=[(0.0, 0.2)],
         values=[3.0],
         d_min=0.5,
+        engine=engine,
     )
     # rover 1 dead ahead (q2), rover 2 coincident (bearing 0 -> q2): each 1/0.25 = 4.
     # POI dead left at 0.2 < 0.5 (q3): 3 / 0.25 = 12.
     np.testing.assert_allclose(obs[0], [0, 0, 8.0, 0, 0, 0, 0, 12.0], rtol=1e-6)
 
 
-def test_sensing_uses_the_rovers_own_frame():
+def test_sensing_uses_the_rovers_own_frame(engine):
     # Same layout, rover rotated by +90 deg: the object at world (0, 2) is now dead ahead.
     # (Headings with inexact sines keep objects off the boundaries.)
     obs = _obs(
-        rovers=[(0, 0), (0.3, 2.0)], headings=[math.pi / 2, 0.0], pois=[(-3, 0.2)], values=[1.0]
+        rovers=[(0, 0), (0.3, 2.0)],
+        headings=[math.pi / 2, 0.0],
+        pois=[(-3, 0.2)],
+        values=[1.0],
+        engine=engine,
     )
     # rover 1 at (0.3, 2): in rover 0's frame forward 2, left -0.3 -> front-right (q1).
     # POI at (-3, 0.2): forward 0.2, left 3 -> front-left (q2).
@@ -79,6 +114,7 @@ def test_sensing_uses_the_rovers_own_frame():
 )
 def test_quadrant_boundaries(forward, left, q):
     assert quadrants(np.array([forward]), np.array([left]))[0] == q
+    assert kernels.quadrant(forward, left) == q
 
 
 def test_quadrant_matches_the_atan2_definition():
@@ -88,6 +124,8 @@ def test_quadrant_matches_the_atan2_definition():
     b = np.where(b >= math.pi, -math.pi, b)
     expected = np.floor((b + math.pi) / (math.pi / 2)).astype(int)
     np.testing.assert_array_equal(quadrants(f, l), expected)
+    compiled = [kernels.quadrant(*fl) for fl in zip(f, l, strict=True)]
+    np.testing.assert_array_equal(compiled, expected)
 
 
 def _reference_observe(rovers, headings, pois, values, d_min):
@@ -108,14 +146,14 @@ def _reference_observe(rovers, headings, pois, values, d_min):
     return out
 
 
-def test_batched_equals_plain_loop():
+def test_batched_equals_plain_loop(engine):
     rng = np.random.default_rng(1)
     rovers = rng.uniform(-6, 6, (4, 7, 2))
     headings = rng.uniform(-math.pi, math.pi, (4, 7))
     pois = rng.uniform(-15, 15, (4, 3, 2))
     values = rng.uniform(0.5, 4, (4, 3))
     np.testing.assert_allclose(
-        observe(rovers, headings, pois, values, 1.0),
+        OBSERVE[engine](rovers, headings, pois, values, 1.0),
         _reference_observe(rovers, headings, pois, values, 1.0),
         rtol=2e-5,
     )

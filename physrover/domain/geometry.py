@@ -27,7 +27,8 @@ the signs of ``f`` and ``l`` instead of ``atan2``: the same answer, exact on the
 Precision: relations are computed in float32 (positions are kept in float64 by the world).
 Observations are float32 anyway, and this halves the cost of the hot path; a capture
 decision can differ from a float64 computation only for a rover within ~1e-6 world units of
-the capture circle.
+the capture circle. (The compiled kernel of :mod:`physrover.domain.kernels`, the default
+engine, computes them in float64.)
 """
 
 from __future__ import annotations

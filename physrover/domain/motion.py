@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from physrover.engine import resolve
+
 
 def body_to_world(vectors: np.ndarray, headings: np.ndarray) -> np.ndarray:
     """Rotate (E, R, 2) vectors from each rover's frame into the world frame."""
@@ -33,9 +35,16 @@ def commanded_move(actions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarra
 
 
 class IdealMotion:
-    """Stateless idealised kinematics; see the module docstring."""
+    """Stateless idealised kinematics; see the module docstring.
+
+    ``engine`` picks the compiled kernel (``"numba"``) or this module's numpy code
+    (``"numpy"``); default from ``PHYSROVER_ENGINE`` (:mod:`physrover.engine`).
+    """
 
     name = "ideal"
+
+    def __init__(self, engine: str | None = None):
+        self.engine = resolve(engine)
 
     def reset(self, positions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nothing to rebuild: the idealised model has no state of its own."""
@@ -54,5 +63,11 @@ class IdealMotion:
         Returns:
             New positions (E, R, 2) and headings (E, R) in (-pi, pi].
         """
+        if self.engine == "numba":
+            from physrover.domain.kernels import ideal_move
+
+            new_positions, new_headings = np.empty(positions.shape), np.empty(headings.shape)
+            ideal_move(positions, headings, actions, new_positions, new_headings)
+            return new_positions, new_headings
         move, new_headings = commanded_move(actions, headings)
         return positions + move, new_headings

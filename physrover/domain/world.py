@@ -12,6 +12,9 @@ Arrays carry the team axis first: positions (E, R, 2), headings (E, R), observat
 4. senses (Eqs. 15-16) and scores the step (Eqs. 12-13) from those relations,
 
 and records each rover's trajectory of (observation, action) pairs for the fitness critics.
+Steps 2 (idealised motion) and 3-4 run either as numpy array code (the reference:
+``motion``, ``geometry``, ``sensing``, ``scoring``) or as compiled loops
+(:mod:`physrover.domain.kernels`), per :mod:`physrover.engine`.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from physrover import engine as engines
 from physrover.config import DomainConfig
 from physrover.domain.geometry import relate
 from physrover.domain.motion import IdealMotion
@@ -75,10 +79,10 @@ def _team_array(name: str, value: Any, shape: tuple[int, ...], n_teams: int) -> 
     return np.array(arr)
 
 
-def make_motion(config: DomainConfig, n_teams: int):
+def make_motion(config: DomainConfig, n_teams: int, engine: str | None = None):
     """The motion model named by ``config.motion``."""
     if config.motion == "ideal":
-        return IdealMotion()
+        return IdealMotion(engine)
     if config.motion == "physics":
         from physrover.domain.physics import PhysicsMotion
 
@@ -92,6 +96,8 @@ class RoverWorld:
     Args:
         config: the domain.
         n_teams: E, the number of independent teams.
+        engine: ``"numba"`` (compiled kernels) or ``"numpy"`` (the reference); default from
+            ``PHYSROVER_ENGINE`` (see :mod:`physrover.engine`).
 
     After :meth:`reset` the state is in ``rover_positions`` (E, R, 2), ``rover_headings``
     (E, R), ``poi_positions`` (E, K, 2), ``poi_values`` (E, K); ``t`` is the number of steps
@@ -102,7 +108,7 @@ class RoverWorld:
     for rows <= ``self.t``.
     """
 
-    def __init__(self, config: DomainConfig, n_teams: int):
+    def __init__(self, config: DomainConfig, n_teams: int, engine: str | None = None):
         if not isinstance(config, DomainConfig):
             raise TypeError(f"config must be a DomainConfig, got {type(config).__name__}")
         if int(n_teams) < 1:
@@ -111,7 +117,8 @@ class RoverWorld:
         self.n_teams = int(n_teams)
         self.n_rovers = config.n_rovers
         self.n_pois = config.n_pois
-        self.motion = make_motion(config, self.n_teams)
+        self.engine = engines.resolve(engine)
+        self.motion = make_motion(config, self.n_teams, self.engine)
         self.scores = ScoreKeeper(config.n_req)
         shape = (config.steps, self.n_teams, self.n_rovers)
         self.observations = np.zeros((*shape, OBS_DIM), dtype=np.float32)
@@ -191,16 +198,44 @@ class RoverWorld:
         return self._observe_and_score()
 
     def _observe_and_score(self) -> np.ndarray:
+        if self.engine == "numba":
+            obs = self._observe_and_score_compiled()
+        else:
+            obs = self._observe_and_score_reference()
+        self.position_history[self.t] = self.rover_positions
+        self.heading_history[self.t] = self.rover_headings
+        if self.t < self.config.steps:
+            self.observations[self.t] = obs
+        return obs
+
+    def _observe_and_score_compiled(self) -> np.ndarray:
+        from physrover.domain.kernels import observe_and_score
+
+        cfg, scores = self.config, self.scores
+        obs = np.empty((self.n_teams, self.n_rovers, OBS_DIM), dtype=np.float32)
+        observe_and_score(
+            self.rover_positions,
+            self.rover_headings,
+            self.poi_positions,
+            self.poi_values,
+            cfg.d_min,
+            cfg.d_cap,
+            cfg.n_req,
+            scores.t,
+            scores.captured,
+            scores.captured_without,
+            scores.capture_step,
+            obs,
+        )
+        scores.t += 1  # the kernel advanced the keeper's arrays as ScoreKeeper.record does
+        return obs
+
+    def _observe_and_score_reference(self) -> np.ndarray:
         rel = relate(
             self.rover_positions, self.rover_headings, self.poi_positions, self.config.d_min
         )
         self.scores.record(in_range(rel.delta_sq[:, :, self.n_rovers :], self.config.d_cap))
-        self.position_history[self.t] = self.rover_positions
-        self.heading_history[self.t] = self.rover_headings
-        obs = sense(rel, self._numerators).astype(np.float32)
-        if self.t < self.config.steps:
-            self.observations[self.t] = obs
-        return obs
+        return sense(rel, self._numerators).astype(np.float32)
 
     # -- results -----------------------------------------------------------------------------
 

@@ -86,16 +86,31 @@ class CCEA:
         extra = self.method.extra_genomes()
         if extra is not None:
             table = np.concatenate([table, extra], axis=1)
-        weights = self.layout.split(table[rovers[None, :], genome_index])  # (E, R, ...)
+        policy = self.layout.prepare(table[rovers[None, :], genome_index])  # (E, R, P) genomes
         obs, _ = self.env.reset()
         for _ in range(self.config.domain.steps):
-            obs, *_ = self.env.step(self.layout.forward(weights, obs))
+            obs, *_ = self.env.step(policy(obs))
         return self.env.world.G.copy(), self.env.world.D.copy()
 
     def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:
         """(rounds, k, R) values by team -> (rounds, R, k) by policy; ``where[q, r, p]`` is
         the team in which policy p of rover r played in round q."""
         return np.take_along_axis(per_team.transpose(0, 2, 1), where, axis=-1)
+
+    def _trajectories(self, where: np.ndarray) -> np.ndarray:
+        """(R, k, T, 10) trajectory of (s, a) pairs of each policy in round 0, from the
+        world's (T, E, R, 8) observations and (T, E, R, 2) actions; ``where[r, p]`` is the
+        team of policy p of rover r."""
+        obs, act = self.env.world.trajectories()
+        if self.env.world.engine == "numba":
+            from physrover.learn.kernels import gather_trajectories
+
+            out = np.empty((self.n_rovers, self.k, obs.shape[0], PAIR_DIM), dtype=np.float32)
+            gather_trajectories(obs, act, where, out)
+            return out
+        pairs = np.concatenate([obs[:, : self.k], act[:, : self.k]], axis=-1)
+        pairs = pairs.transpose(2, 1, 0, 3)  # (R, k teams, T, 10)
+        return np.take_along_axis(pairs, where[:, :, None, None], axis=1)
 
     def run_generation(self) -> GenerationStats:
         cfg, R, k = self.config.learn, self.n_rovers, self.k
@@ -115,11 +130,7 @@ class CCEA:
         G_by_policy = self._by_policy(team_G.reshape(rounds, k, R), where)
         trajectories = None
         if self.method.needs_trajectories:
-            obs, act = self.env.world.trajectories()  # (T, E, R, 8), (T, E, R, 2)
-            pairs = np.concatenate([obs[:, :k], act[:, :k]], axis=-1)  # round 0's teams
-            pairs = pairs.transpose(2, 1, 0, 3)  # (R, k teams, T, 10)
-            trajectories = np.take_along_axis(pairs, where[0][:, :, None, None], axis=1)
-            assert trajectories.shape[-1] == PAIR_DIM
+            trajectories = self._trajectories(where[0])
         fitness = self.method.assign(feedback, G_by_policy, trajectories)
         t_feedback = time.perf_counter()
 

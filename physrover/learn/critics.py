@@ -33,13 +33,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from physrover.engine import resolve
+
 PAIR_DIM = 10  # 8 observation + 2 action
 
 
 class IntermediateCritics:
-    """R critics ``C(x) = sum_h lrelu(x W1 + b1)_h + b2``, stacked; float32 parameters."""
+    """R critics ``C(x) = sum_h lrelu(x W1 + b1)_h + b2``, stacked; float32 parameters.
 
-    def __init__(self, n_critics: int, hidden: int, slope: float, rng: np.random.Generator):
+    ``engine`` chooses how :meth:`__call__` evaluates them: the compiled kernel (``"numba"``)
+    or the numpy code of this class (``"numpy"``); default from ``PHYSROVER_ENGINE``.
+    """
+
+    def __init__(
+        self,
+        n_critics: int,
+        hidden: int,
+        slope: float,
+        rng: np.random.Generator,
+        engine: str | None = None,
+    ):
+        self.engine = resolve(engine)
         bound = 1.0 / np.sqrt(PAIR_DIM)  # PyTorch's default initialisation of a linear layer
         self.W1 = rng.uniform(-bound, bound, (n_critics, PAIR_DIM, hidden)).astype(np.float32)
         self.b1 = rng.uniform(-bound, bound, (n_critics, hidden)).astype(np.float32)
@@ -56,7 +70,19 @@ class IntermediateCritics:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """C for (R, N, 10) pairs -> (R, N) float32."""
-        return self._output(x, self._hidden(x))
+        if self.engine == "numpy":
+            return self._output(x, self._hidden(x))
+        from physrover.learn.kernels import critic_values
+
+        # The kernel keeps pairs in its innermost loop: pairs (R, 10, N), weights (R, H, 10).
+        xT = np.ascontiguousarray(np.swapaxes(x, 1, 2), dtype=np.float32)
+        out = np.empty(x.shape[:2], dtype=np.float32)
+        critic_values(self.W1T(), self.b1, self.b2, self.slope, xT, out)
+        return out
+
+    def W1T(self) -> np.ndarray:
+        """(R, H, 10) contiguous copy of W1, the layout of the compiled kernels."""
+        return np.ascontiguousarray(np.swapaxes(self.W1, 1, 2))
 
     def _output(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         """C from the pairs and their pre-activations (``z`` is overwritten).
@@ -127,9 +153,13 @@ class ReplayBuffer:
         self.next = int((self.next + n) % self.capacity)
         self.size = min(self.size + n, self.capacity)
 
+    def sample_index(self, rng: np.random.Generator, batch: int) -> np.ndarray:
+        """(R, batch) slots drawn uniformly (with replacement) from each rover's entries."""
+        return rng.integers(0, self.size, (self.items.shape[0], batch))
+
     def sample(self, rng: np.random.Generator, batch: int) -> tuple[np.ndarray, np.ndarray]:
         """(R, batch, *item_shape) items and (R, batch) feedback, uniform per rover."""
-        idx = rng.integers(0, self.size, (self.items.shape[0], batch))
+        idx = self.sample_index(rng, batch)
         rows = np.arange(self.items.shape[0])[:, None]
         return self.items[rows, idx], self.feedback[rows, idx]
 
@@ -188,10 +218,17 @@ class FitnessCritic:
     """The fitness critics of R rovers: evaluation (Eqs. 3-4), replay and updates (6-10)."""
 
     def __init__(
-        self, n_rovers: int, steps: int, settings: CriticSettings, rng: np.random.Generator
+        self,
+        n_rovers: int,
+        steps: int,
+        settings: CriticSettings,
+        rng: np.random.Generator,
+        engine: str | None = None,
     ):
         self.settings = settings
-        self.critics = IntermediateCritics(n_rovers, settings.hidden, settings.slope, rng)
+        self.critics = IntermediateCritics(
+            n_rovers, settings.hidden, settings.slope, rng, engine=engine
+        )
         self.optimizer = Optimizer(self.critics.params(), settings.lr, settings.optimizer)
         item = (steps, PAIR_DIM) if settings.update == "regular" else (PAIR_DIM,)
         self.buffer = ReplayBuffer(n_rovers, settings.capacity, item)
@@ -234,10 +271,28 @@ class FitnessCritic:
         s = self.settings
         if self.buffer.size == 0:
             return float("nan")
-        losses = []
-        # All mini-batches are drawn up front (one gather instead of one per batch); the
-        # batches are independent uniform draws either way.
+        # All mini-batches are drawn up front (one draw instead of one per batch); the
+        # batches are independent uniform draws either way, and both engines draw the same.
+        if self.critics.engine == "numba" and s.update == "inexact" and s.optimizer == "sgd":
+            from physrover.learn.kernels import inexact_sgd
+
+            index = self.buffer.sample_index(rng, s.batches * s.batch)
+            c, W1T = self.critics, self.critics.W1T()
+            loss = inexact_sgd(
+                W1T,
+                c.b1,
+                c.b2,
+                c.slope,
+                np.float32(s.lr),
+                self.buffer.items,
+                self.buffer.feedback,
+                index,
+                s.batch,
+            )
+            c.W1[...] = np.swapaxes(W1T, 1, 2)
+            return float(loss)
         all_items, all_feedback = self.buffer.sample(rng, s.batches * s.batch)
+        losses = []
         for b in range(s.batches):
             part = slice(b * s.batch, (b + 1) * s.batch)
             items, feedback = all_items[:, part], all_feedback[:, part]

@@ -9,17 +9,28 @@ operations and a batch of teams is evaluated with two batched matrix products.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from physrover.domain.sensing import OBS_DIM
 from physrover.domain.world import ACTION_DIM
+from physrover.engine import resolve
 
 
 class PolicyLayout:
-    """Offsets of the weight blocks inside a genome of a policy with ``hidden`` units."""
+    """Offsets of the weight blocks inside a genome of a policy with ``hidden`` units.
 
-    def __init__(self, hidden: int, n_in: int = OBS_DIM, n_out: int = ACTION_DIM):
+    ``engine`` chooses how :meth:`prepare` evaluates policies: the compiled kernel
+    (``"numba"``, :func:`physrover.learn.kernels.policy_forward`) or :meth:`forward`
+    (``"numpy"``, the reference); default from ``PHYSROVER_ENGINE``.
+    """
+
+    def __init__(
+        self, hidden: int, n_in: int = OBS_DIM, n_out: int = ACTION_DIM, engine: str | None = None
+    ):
         self.n_in, self.hidden, self.n_out = n_in, hidden, n_out
+        self.engine = resolve(engine)
         sizes = [n_in * hidden, hidden, hidden * n_out, n_out]
         self.bounds = np.concatenate([[0], np.cumsum(sizes)])
         self.size = int(self.bounds[-1])
@@ -58,6 +69,27 @@ class PolicyLayout:
         out += b2
         return np.tanh(out, out=out)
 
+    def prepare(self, genomes: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        """A function ``obs (E, R, 8) -> actions (E, R, 2)`` of fixed (E, R, P) genomes, for
+        the steps of an episode (the weights are laid out once)."""
+        # The kernel is compiled for the domain's sizes (8 observations, 2 actions).
+        if self.engine == "numpy" or (self.n_in, self.n_out) != (OBS_DIM, ACTION_DIM):
+            weights = self.split(genomes)
+            return lambda obs: self.forward(weights, obs)
+        from physrover.learn.kernels import policy_forward
+
+        genomes = np.ascontiguousarray(genomes, dtype=np.float32)
+        if genomes.shape[-1] != self.size:
+            raise ValueError(f"genomes must have {self.size} parameters, got {genomes.shape[-1]}")
+
+        def act(obs: np.ndarray) -> np.ndarray:
+            out = np.empty((*genomes.shape[:-1], self.n_out), dtype=np.float32)
+            obs = np.asarray(obs, dtype=np.float32)
+            policy_forward(genomes, self.hidden, obs, out)
+            return np.tanh(out, out=out)
+
+        return act
+
     def act(self, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """Actions of every rover of every team.
 
@@ -68,4 +100,4 @@ class PolicyLayout:
         Returns:
             (E, R, 2) float32 actions in (-1, 1).
         """
-        return self.forward(self.split(genomes), obs)
+        return self.prepare(genomes)(obs)

@@ -1,0 +1,117 @@
+"""The compiled kernels against the numpy reference (physrover.engine): same episodes, same
+scores, same critic updates, to float32 rounding where the arithmetic is continuous."""
+
+import numpy as np
+import pytest
+
+from physrover.config import DomainConfig, RunConfig
+from physrover.domain.kernels import ideal_move
+from physrover.domain.motion import commanded_move
+from physrover.domain.world import RoverWorld
+from physrover.engine import ENV_VAR, resolve
+from physrover.learn.ccea import CCEA
+from physrover.learn.critics import CriticSettings, FitnessCritic, IntermediateCritics
+
+
+def _episode(engine, config, n_teams=6, seed=0):
+    world = RoverWorld(config, n_teams, engine=engine)
+    world.reset([np.random.default_rng(seed + e) for e in range(n_teams)])
+    actions = np.random.default_rng(99).uniform(-1.2, 1.2, (config.steps, n_teams, 9, 2))
+    actions[3] = 0.0  # a step of zero commands keeps the headings
+    for a in actions:
+        world.step(a[:, : config.n_rovers])
+    return world
+
+
+@pytest.mark.parametrize("n_req", [1, 2, 3])
+def test_world_episode_is_the_same_on_both_engines(n_req):
+    # A small ring, so that captures and non-zero D happen at every coupling.
+    cfg = DomainConfig(n_rovers=9, n_req=n_req, poi_ring_radius=6.0, spawn_radius=3.0, steps=30)
+    ref, fast = _episode("numpy", cfg), _episode("numba", cfg)
+    assert ref.G.max() > 0 and ref.D.any()
+    np.testing.assert_array_equal(fast.G, ref.G)
+    np.testing.assert_array_equal(fast.D, ref.D)
+    np.testing.assert_array_equal(fast.scores.capture_step, ref.scores.capture_step)
+    np.testing.assert_array_equal(fast.scores.captured_without, ref.scores.captured_without)
+    np.testing.assert_allclose(fast.position_history, ref.position_history, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fast.heading_history, ref.heading_history, rtol=0, atol=1e-12)
+    # Relations are float32 in the reference, float64 in the kernel.
+    np.testing.assert_allclose(fast.observations, ref.observations, rtol=2e-6, atol=1e-7)
+    np.testing.assert_array_equal(fast.actions, ref.actions)
+
+
+def test_ideal_move_kernel_matches_the_reference():
+    rng = np.random.default_rng(1)
+    positions = rng.uniform(-5, 5, (3, 4, 2))
+    headings = rng.uniform(-np.pi, np.pi, (3, 4))
+    actions = rng.uniform(-1, 1, (3, 4, 2))
+    actions[0, 0] = 0.0
+    new_positions, new_headings = np.empty_like(positions), np.empty_like(headings)
+    ideal_move(positions, headings, actions, new_positions, new_headings)
+    move, expected_headings = commanded_move(actions, headings)
+    np.testing.assert_allclose(new_positions, positions + move, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(new_headings, expected_headings, rtol=0, atol=1e-14)
+    assert new_headings[0, 0] == headings[0, 0]  # no move, no turn
+
+
+def test_critic_values_match_the_reference():
+    rng = np.random.default_rng(2)
+    ref = IntermediateCritics(3, 20, 0.01, np.random.default_rng(0), engine="numpy")
+    fast = IntermediateCritics(3, 20, 0.01, np.random.default_rng(0), engine="numba")
+    fast.b2[...] = ref.b2[...] = [0.5, -1.0, 2.0]
+    x = rng.normal(size=(3, 37, 10)).astype(np.float32)
+    np.testing.assert_allclose(fast(x), ref(x), rtol=1e-5, atol=1e-5)
+
+
+@pytest.mark.parametrize("hidden", [80, 13])
+def test_inexact_sgd_kernel_matches_the_reference_update(hidden):
+    settings = CriticSettings("max", "inexact", hidden, 0.01, 1e-2, "sgd", 300, 7, 5)
+    ref = FitnessCritic(4, 6, settings, np.random.default_rng(0), engine="numpy")
+    fast = FitnessCritic(4, 6, settings, np.random.default_rng(0), engine="numba")
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        traj = rng.normal(size=(4, 5, 6, 10)).astype(np.float32)
+        feedback = rng.normal(size=(4, 5)).astype(np.float32) * 3
+        ref.store(traj, feedback)
+        fast.store(traj, feedback)
+        loss_ref = ref.update(np.random.default_rng(7))
+        loss_fast = fast.update(np.random.default_rng(7))
+        np.testing.assert_allclose(loss_fast, loss_ref, rtol=1e-5)
+    before = IntermediateCritics(4, hidden, 0.01, np.random.default_rng(0), engine="numpy")
+    for got, want, start in zip(
+        fast.critics.params(), ref.critics.params(), before.params(), strict=True
+    ):
+        assert not np.array_equal(want, start)  # the updates did something ...
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)  # ... and the same thing
+
+
+def test_trajectory_gather_matches_the_reference():
+    cfg = RunConfig().with_overrides(
+        {"n_rovers": 4, "population": 6, "steps": 5, "method": "max-critic", "eval_episodes": 2}
+    )
+    ccea = CCEA(cfg)
+    order = ccea.method.plan(np.random.default_rng(0), 4, 6)
+    team_index = order.transpose(0, 2, 1).reshape(6, 4)
+    ccea.rollout(np.concatenate([team_index, team_index[:2]]))
+    where = np.argsort(order, axis=-1)[0]
+    got = {}
+    for engine in ("numpy", "numba"):  # the same episodes, gathered both ways
+        ccea.env.world.engine = engine
+        got[engine] = ccea._trajectories(where)
+    assert got["numba"].shape == (4, 6, 5, 10)
+    np.testing.assert_array_equal(got["numba"], got["numpy"])
+    obs, act = ccea.env.world.trajectories()
+    r, p = 2, 3
+    np.testing.assert_array_equal(got["numba"][r, p, :, :8], obs[:, where[r, p], r])
+    np.testing.assert_array_equal(got["numba"][r, p, :, 8:], act[:, where[r, p], r])
+
+
+def test_engine_choice_is_validated(monkeypatch):
+    assert resolve("numpy") == "numpy"
+    with pytest.raises(ValueError, match="engine must be one of numba, numpy, got 'fortran'"):
+        resolve("fortran")
+    monkeypatch.setenv(ENV_VAR, "cuda")
+    with pytest.raises(ValueError, match=f"{ENV_VAR} must be one of"):
+        RoverWorld(DomainConfig(), 1)
+    monkeypatch.delenv(ENV_VAR)
+    assert RoverWorld(DomainConfig(), 1).engine == "numba"
