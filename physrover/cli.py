@@ -7,6 +7,7 @@ line ``physrover: error: ...`` with exit status 2, never as a traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -17,6 +18,7 @@ from physrover.config import (
     RunConfig,
     parse_override,
 )
+from physrover.engine import ENGINES, ENV_VAR, EngineError, resolve
 from physrover.render import VideoError
 from physrover.runs import RunError, find_runs
 from physrover.threads import pin_threads
@@ -91,7 +93,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from physrover import bench
 
     pin_threads(args.threads)
+    if args.engine:  # read by every world, policy and critic built from here on
+        os.environ[ENV_VAR] = args.engine
     config = _run_config(args)
+    print(f"engine: {resolve()}")
     if args.what == "world":
         timing = bench.bench_world(config.domain, n_teams=args.teams, repeats=args.repeats)
         print(timing.line())
@@ -264,6 +269,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--teams", type=int, default=50, help="teams stepped together (default 50)")
     p.add_argument("--repeats", type=int, default=20, help="timed runs/generations (default 20)")
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
+    p.add_argument(
+        "--engine",
+        choices=ENGINES,
+        help=f"compiled kernels or the numpy reference (default: ${ENV_VAR} or numba)",
+    )
     _add_config_args(p)
     p.set_defaults(func=cmd_bench)
     return parser
@@ -274,7 +284,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ConfigError, UsageError, RunError, VideoError) as exc:
+    except (ConfigError, EngineError, UsageError, RunError, VideoError) as exc:
         print(f"physrover: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

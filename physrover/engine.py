@@ -27,12 +27,16 @@ ENGINES = ("numba", "numpy")
 ENV_VAR = "PHYSROVER_ENGINE"
 
 
+class EngineError(ValueError):
+    """An unknown engine name (argument or environment variable)."""
+
+
 def resolve(engine: str | None = None) -> str:
     """``engine``, or the environment's choice (default ``"numba"``), validated."""
     name = engine if engine is not None else os.environ.get(ENV_VAR, "numba")
     if name not in ENGINES:
         source = "engine" if engine is not None else ENV_VAR
-        raise ValueError(f"{source} must be one of {', '.join(ENGINES)}, got {name!r}")
+        raise EngineError(f"{source} must be one of {', '.join(ENGINES)}, got {name!r}")
     return name
 
 

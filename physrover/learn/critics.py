@@ -147,9 +147,11 @@ class ReplayBuffer:
                 feedback[:, -self.capacity :],
                 self.capacity,
             )
-        slots = (self.next + np.arange(n)) % self.capacity
-        self.items[:, slots] = items
-        self.feedback[:, slots] = feedback
+        first = min(n, self.capacity - self.next)  # slots up to the end, then from the start
+        self.items[:, self.next : self.next + first] = items[:, :first]
+        self.feedback[:, self.next : self.next + first] = feedback[:, :first]
+        self.items[:, : n - first] = items[:, first:]
+        self.feedback[:, : n - first] = feedback[:, first:]
         self.next = int((self.next + n) % self.capacity)
         self.size = min(self.size + n, self.capacity)
 
