@@ -170,7 +170,8 @@ class RoverWorld:
         if np.any(self.poi_values <= 0):
             raise ValueError("poi_values must be positive")
 
-        self._numerators = numerators(n_rovers, self.poi_values)
+        if self.engine == "numpy":  # the compiled kernel reads the POI values directly
+            self._numerators = numerators(n_rovers, self.poi_values)
         # The physical model may push overlapping spawn positions apart.
         self.rover_positions, self.rover_headings = self.motion.reset(positions, headings)
         self.scores.reset(n_teams, n_rovers, self.poi_values)

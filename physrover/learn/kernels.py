@@ -16,11 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from physrover.domain.sensing import OBS_DIM
+from physrover.domain.world import ACTION_DIM
 from physrover.engine import jit, jit_reassoc
-
-OBS_DIM = 8  # = physrover.domain.sensing.OBS_DIM
-ACTION_DIM = 2  # = physrover.domain.world.ACTION_DIM
-PAIR_DIM = OBS_DIM + ACTION_DIM  # = physrover.learn.critics.PAIR_DIM
+from physrover.learn.critics import PAIR_DIM
 
 
 @jit
