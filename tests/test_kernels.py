@@ -7,27 +7,38 @@ import pytest
 from physrover.config import DomainConfig, RunConfig
 from physrover.domain.kernels import ideal_move
 from physrover.domain.motion import commanded_move
-from physrover.domain.world import RoverWorld
+from physrover.domain.world import RoverWorld, Scenario
 from physrover.engine import ENV_VAR, resolve
 from physrover.learn.ccea import CCEA
 from physrover.learn.critics import CriticSettings, FitnessCritic, IntermediateCritics
 
 
-def _episode(engine, config, n_teams=6, seed=0):
+def _episode(engine, config, n_teams=6, seed=0, dtype=np.float64):
     world = RoverWorld(config, n_teams, engine=engine)
     world.reset([np.random.default_rng(seed + e) for e in range(n_teams)])
     actions = np.random.default_rng(99).uniform(-1.2, 1.2, (config.steps, n_teams, 9, 2))
     actions[3] = 0.0  # a step of zero commands keeps the headings
-    for a in actions:
+    for a in actions.astype(dtype):
         world.step(a[:, : config.n_rovers])
     return world
 
 
-@pytest.mark.parametrize("n_req", [1, 2, 3])
-def test_world_episode_is_the_same_on_both_engines(n_req):
+@pytest.mark.parametrize(
+    "n_req, dtype, motion",
+    [
+        (1, np.float64, "ideal"),
+        (2, np.float64, "ideal"),
+        (3, np.float64, "ideal"),
+        (3, np.float32, "ideal"),  # the policies' actions are float32
+        (2, np.float64, "physics"),  # pymunk moves, the compiled kernel senses and scores
+    ],
+)
+def test_world_episode_is_the_same_on_both_engines(n_req, dtype, motion):
     # A small ring, so that captures and non-zero D happen at every coupling.
-    cfg = DomainConfig(n_rovers=9, n_req=n_req, poi_ring_radius=6.0, spawn_radius=3.0, steps=30)
-    ref, fast = _episode("numpy", cfg), _episode("numba", cfg)
+    cfg = DomainConfig(
+        n_rovers=9, n_req=n_req, poi_ring_radius=6.0, spawn_radius=3.0, steps=30, motion=motion
+    )
+    ref, fast = _episode("numpy", cfg, dtype=dtype), _episode("numba", cfg, dtype=dtype)
     assert ref.G.max() > 0 and ref.D.any()
     np.testing.assert_array_equal(fast.G, ref.G)
     np.testing.assert_array_equal(fast.D, ref.D)
@@ -38,6 +49,46 @@ def test_world_episode_is_the_same_on_both_engines(n_req):
     # Relations are float32 in the reference, float64 in the kernel.
     np.testing.assert_allclose(fast.observations, ref.observations, rtol=2e-6, atol=1e-7)
     np.testing.assert_array_equal(fast.actions, ref.actions)
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_a_nan_action_changes_nothing(engine):
+    cfg = DomainConfig(n_rovers=3, n_req=1, steps=5)
+    world = RoverWorld(cfg, 2, engine=engine)
+    world.reset([np.random.default_rng(e) for e in range(2)])
+    world.step(np.full((2, 3, 2), 0.5, dtype=np.float32))
+    before = {
+        name: np.copy(getattr(world, name))
+        for name in ("rover_positions", "rover_headings", "position_history", "observations")
+    }
+    t, G = world.t, world.G
+    bad = np.full((2, 3, 2), 0.5, dtype=np.float32)
+    bad[1, 2, 1] = np.nan  # the last command of the last team: checked before anything moves
+    with pytest.raises(ValueError, match="NaN"):
+        world.step(bad)
+    assert world.t == t and world.scores.t == t + 1
+    np.testing.assert_array_equal(world.G, G)
+    for name, value in before.items():
+        np.testing.assert_array_equal(getattr(world, name), value, err_msg=name)
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_a_vanishing_move_still_turns_the_rover(engine):
+    # A command of 1e-200 to the left: its square underflows, yet the heading becomes the
+    # move's direction (+y), and the next forward move goes along it.
+    world = RoverWorld(DomainConfig(n_rovers=1, n_req=1, steps=3), 1, engine=engine)
+    world.reset([np.random.default_rng(0)], Scenario(rover_positions=[(0, 0)], rover_headings=[0]))
+    world.step(np.array([[[0.0, 1e-200]]]))
+    assert world.rover_headings[0, 0] == np.pi / 2
+    world.step(np.array([[[1.0, 0.0]]]))
+    np.testing.assert_allclose(world.rover_positions[0, 0], [0.0, 1.0], rtol=0, atol=1e-15)
+
+
+def test_the_state_is_the_last_history_row():
+    # The compiled step writes the new state straight into the history rows.
+    world = _episode("numba", DomainConfig(n_rovers=4, steps=6))
+    np.testing.assert_array_equal(world.rover_positions, world.position_history[world.t])
+    np.testing.assert_array_equal(world.rover_headings, world.heading_history[world.t])
 
 
 def test_ideal_move_kernel_matches_the_reference():
@@ -63,11 +114,12 @@ def test_critic_values_match_the_reference():
     np.testing.assert_allclose(fast(x), ref(x), rtol=1e-5, atol=1e-5)
 
 
-@pytest.mark.parametrize("hidden", [80, 13])
-def test_inexact_sgd_kernel_matches_the_reference_update(hidden):
+@pytest.mark.parametrize("hidden, batch", [(80, 7), (13, 7), (13, 64), (13, 65)])
+def test_inexact_sgd_kernel_matches_the_reference_update(hidden, batch):
     # lr 1e-3: large steps that still converge (at 1e-2 the critics diverge to ~1e4, where
-    # float32 rounding of differently ordered sums is amplified past any fair tolerance)
-    settings = CriticSettings("max", "inexact", hidden, 0.01, 1e-3, "sgd", 300, 7, 5)
+    # float32 rounding of differently ordered sums is amplified past any fair tolerance).
+    # Batches of 7, 64 and 65 pairs: padded by 57, by none, and by 63 (kernels.PAD_PAIRS).
+    settings = CriticSettings("max", "inexact", hidden, 0.01, 1e-3, "sgd", 300, batch, 5)
     ref = FitnessCritic(4, 6, settings, np.random.default_rng(0), engine="numpy")
     fast = FitnessCritic(4, 6, settings, np.random.default_rng(0), engine="numba")
     rng = np.random.default_rng(3)

@@ -15,9 +15,18 @@ def compiled_observe(rovers, headings, pois, values, d_min):
     """Observations from the compiled kernel (same arguments as ``sensing.observe``)."""
     n_teams, n_rovers, _ = rovers.shape
     n_pois = pois.shape[1]
+    rovers, headings, pois, values = (
+        np.ascontiguousarray(a, dtype=float) for a in (rovers, headings, pois, values)
+    )
+    cos_h, sin_h = np.empty_like(headings), np.empty_like(headings)
+    kernels.heading_trig(headings, cos_h, sin_h)
     obs = np.empty((n_teams, n_rovers, 8), dtype=np.float32)
     kernels.observe_and_score(
-        *(np.ascontiguousarray(a, dtype=float) for a in (rovers, headings, pois, values)),
+        rovers,
+        cos_h,
+        sin_h,
+        pois,
+        values,
         d_min,
         4.0,
         3,
@@ -25,6 +34,7 @@ def compiled_observe(rovers, headings, pois, values, d_min):
         np.zeros((n_teams, n_pois), dtype=bool),
         np.zeros((n_teams, n_rovers, n_pois), dtype=bool),
         np.full((n_teams, n_pois), -1),
+        np.zeros(n_teams),
         obs,
     )
     return obs

@@ -45,6 +45,7 @@ class ScoreKeeper:
         self.captured_without: np.ndarray | None = None  # (E, R, K) bool: same, rover i removed
         self.capture_step: np.ndarray | None = None  # (E, K) int: first capture step, -1 if none
         self.poi_values: np.ndarray | None = None  # (E, K)
+        self.score: np.ndarray | None = None  # (E,) float64: G so far, updated every step
         self.t = 0
 
     def reset(self, n_teams: int, n_rovers: int, poi_values: np.ndarray) -> None:
@@ -53,6 +54,7 @@ class ScoreKeeper:
         self.captured = np.zeros((n_teams, n_pois), dtype=bool)
         self.captured_without = np.zeros((n_teams, n_rovers, n_pois), dtype=bool)
         self.capture_step = np.full((n_teams, n_pois), -1, dtype=np.int64)
+        self.score = np.zeros(n_teams)
         self.t = 0
 
     def record(self, in_range_: np.ndarray) -> None:
@@ -64,17 +66,18 @@ class ScoreKeeper:
         self.captured |= now
         # Eq. 12 without rover i: the count minus rover i's own indicator.
         self.captured_without |= (count[:, None, :] - in_range_) >= self.n_req
+        self.score[:] = team_score(self.captured, self.poi_values)
         self.t += 1
 
     @property
     def G(self) -> np.ndarray:
-        """(E,) team score so far (Eq. 11)."""
-        return team_score(self.captured, self.poi_values)
+        """(E,) team score so far (Eq. 11), a copy."""
+        return self.score.copy()
 
     @property
     def D(self) -> np.ndarray:
         """(E, R) difference evaluation of every rover so far (Eq. 1, null counterfactual)."""
-        return self.G[:, None] - team_score(self.captured_without, self.poi_values)
+        return self.score[:, None] - team_score(self.captured_without, self.poi_values)
 
 
 def score_episode(

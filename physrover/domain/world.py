@@ -14,7 +14,10 @@ Arrays carry the team axis first: positions (E, R, 2), headings (E, R), observat
 and records each rover's trajectory of (observation, action) pairs for the fitness critics.
 Steps 2 (idealised motion) and 3-4 run either as numpy array code (the reference:
 ``motion``, ``geometry``, ``sensing``, ``scoring``) or as compiled loops
-(:mod:`physrover.domain.kernels`), per :mod:`physrover.engine`.
+(:mod:`physrover.domain.kernels`), per :mod:`physrover.engine`. With the compiled engine
+and idealised motion, the whole step (1-4 and the records) is one kernel call,
+:func:`~physrover.domain.kernels.ideal_step`; the physical model moves the rovers with
+pymunk between the clip and the compiled sensing.
 """
 
 from __future__ import annotations
@@ -126,6 +129,10 @@ class RoverWorld:
         states = (config.steps + 1, self.n_teams, self.n_rovers)
         self.position_history = np.zeros((*states, 2))
         self.heading_history = np.zeros(states)
+        # cos and sin of the headings, kept by the compiled engine (see domain.kernels)
+        self._cos_h = np.zeros(states[1:])
+        self._sin_h = np.zeros(states[1:])
+        self._fused = self.engine == "numba" and isinstance(self.motion, IdealMotion)
         self.t = -1  # not reset yet
 
     # -- state -------------------------------------------------------------------------------
@@ -176,7 +183,11 @@ class RoverWorld:
         self.rover_positions, self.rover_headings = self.motion.reset(positions, headings)
         self.scores.reset(n_teams, n_rovers, self.poi_values)
         self.t = 0
-        return self._observe_and_score()
+        obs = self._observe_and_score()
+        if self._fused:  # the kernel steps from and into rows of the history
+            self.rover_positions = self.position_history[0]
+            self.rover_headings = self.heading_history[0]
+        return obs
 
     def step(self, actions: np.ndarray) -> np.ndarray:
         """Apply (E, R, 2) actions (clipped to [-1, 1]); returns (E, R, 8) float32 observations."""
@@ -188,6 +199,8 @@ class RoverWorld:
         expected = (self.n_teams, self.n_rovers, ACTION_DIM)
         if actions.shape != expected:
             raise ValueError(f"actions must have shape {expected}, got {actions.shape}")
+        if self._fused:
+            return self._step_compiled(actions)
         if np.isnan(actions.sum()) and np.isnan(actions).any():  # the sum is the cheap test
             raise ValueError("actions contain NaN")
         actions = np.clip(actions, -1.0, 1.0, dtype=np.float64)
@@ -197,6 +210,36 @@ class RoverWorld:
         )
         self.t += 1
         return self._observe_and_score()
+
+    def _step_compiled(self, actions: np.ndarray) -> np.ndarray:
+        """The idealised step as one kernel call: the new state is written straight into
+        the history rows, and ``rover_positions``/``rover_headings`` become views of them."""
+        from physrover.domain.kernels import ideal_step
+
+        if actions.dtype not in (np.float32, np.float64):
+            actions = actions.astype(np.float64)
+        cfg, scores, t = self.config, self.scores, self.t
+        obs = np.empty((self.n_teams, self.n_rovers, OBS_DIM), dtype=np.float32)
+        ok = ideal_step(
+            actions,
+            self.rover_positions,
+            self.rover_headings,
+            self._cos_h,
+            self._sin_h,
+            self.actions[t],
+            self.position_history[t + 1],
+            self.heading_history[t + 1],
+            *self._scoring_arguments(),
+            obs,
+            self.observations[t + 1] if t + 1 < cfg.steps else obs,
+        )
+        if not ok:
+            raise ValueError("actions contain NaN")
+        scores.t += 1  # the kernel advanced the keeper's arrays as ScoreKeeper.record does
+        self.t = t + 1
+        self.rover_positions = self.position_history[t + 1]
+        self.rover_headings = self.heading_history[t + 1]
+        return obs
 
     def _observe_and_score(self) -> np.ndarray:
         if self.engine == "numba":
@@ -209,14 +252,10 @@ class RoverWorld:
             self.observations[self.t] = obs
         return obs
 
-    def _observe_and_score_compiled(self) -> np.ndarray:
-        from physrover.domain.kernels import observe_and_score
-
+    def _scoring_arguments(self) -> tuple:
+        """The arguments the compiled kernels share, from ``poi_positions`` to ``score``."""
         cfg, scores = self.config, self.scores
-        obs = np.empty((self.n_teams, self.n_rovers, OBS_DIM), dtype=np.float32)
-        observe_and_score(
-            self.rover_positions,
-            self.rover_headings,
+        return (
             self.poi_positions,
             self.poi_values,
             cfg.d_min,
@@ -226,9 +265,22 @@ class RoverWorld:
             scores.captured,
             scores.captured_without,
             scores.capture_step,
+            scores.score,
+        )
+
+    def _observe_and_score_compiled(self) -> np.ndarray:
+        from physrover.domain.kernels import heading_trig, observe_and_score
+
+        heading_trig(self.rover_headings, self._cos_h, self._sin_h)
+        obs = np.empty((self.n_teams, self.n_rovers, OBS_DIM), dtype=np.float32)
+        observe_and_score(
+            self.rover_positions,
+            self._cos_h,
+            self._sin_h,
+            *self._scoring_arguments(),
             obs,
         )
-        scores.t += 1  # the kernel advanced the keeper's arrays as ScoreKeeper.record does
+        self.scores.t += 1  # the kernel advanced the keeper's arrays as ScoreKeeper.record does
         return obs
 
     def _observe_and_score_reference(self) -> np.ndarray:

@@ -21,6 +21,10 @@ from physrover.domain.world import ACTION_DIM
 from physrover.engine import jit, jit_reassoc
 from physrover.learn.critics import PAIR_DIM
 
+# Mini-batches are padded to a multiple of this many pairs (16 float32 lanes of AVX-512 x 4
+# interleaved, as LLVM vectorises): measured, 64 pairs take less time than 50.
+PAD_PAIRS = 64
+
 
 @jit
 def policy_forward(genomes, hidden, obs, out):
@@ -184,12 +188,15 @@ def inexact_sgd(W1T, b1, b2, slope, lr, items, feedback, index, batch):
     n_critics, n_items = index.shape
     hidden = W1T.shape[1]
     n_batches = n_items // batch
-    xT = np.empty((PAIR_DIM, batch), np.float32)
+    # Pairs are padded to a multiple of PAD_PAIRS with zero inputs and zero weight: they add
+    # exact zeros to the gradient sums, and the pair loops get whole vector iterations.
+    padded = -(-batch // PAD_PAIRS) * PAD_PAIRS
+    xT = np.zeros((PAIR_DIM, padded), np.float32)
     drawn = np.empty((n_items, PAIR_DIM), np.float32)  # one critic's draws, gathered at once
     drawn_feedback = np.empty(n_items, np.float32)
-    z = np.empty((hidden, batch), np.float32)
-    value = np.empty(batch, np.float32)
-    delta = np.empty(batch, np.float32)
+    z = np.empty((hidden, padded), np.float32)
+    value = np.empty(padded, np.float32)
+    delta = np.zeros(padded, np.float32)
     dW1T = np.empty((hidden, PAIR_DIM), np.float32)
     db1 = np.empty(hidden, np.float32)
     sq_sum = 0.0
