@@ -114,12 +114,25 @@ def test_critic_values_match_the_reference():
     np.testing.assert_allclose(fast(x), ref(x), rtol=1e-5, atol=1e-5)
 
 
-@pytest.mark.parametrize("hidden, batch", [(80, 7), (13, 7), (13, 64), (13, 65)])
-def test_inexact_sgd_kernel_matches_the_reference_update(hidden, batch):
+@pytest.mark.parametrize(
+    "aggregation, update, hidden, batch",
+    [
+        # Inexact batches of 7, 64 and 65 pairs: padded by 57, none and 63 (PAD_PAIRS).
+        ("max", "inexact", 80, 7),
+        ("max", "inexact", 13, 7),
+        ("max", "inexact", 13, 64),
+        ("max", "inexact", 13, 65),
+        ("mean", "inexact", 13, 7),
+        # Regular batches of 7 and 11 trajectories of 6 steps: 42 and 66 pairs.
+        ("mean", "regular", 80, 7),
+        ("max", "regular", 13, 7),
+        ("mean", "regular", 13, 11),
+    ],
+)
+def test_sgd_kernel_matches_the_reference_update(aggregation, update, hidden, batch):
     # lr 1e-3: large steps that still converge (at 1e-2 the critics diverge to ~1e4, where
     # float32 rounding of differently ordered sums is amplified past any fair tolerance).
-    # Batches of 7, 64 and 65 pairs: padded by 57, by none, and by 63 (kernels.PAD_PAIRS).
-    settings = CriticSettings("max", "inexact", hidden, 0.01, 1e-3, "sgd", 300, batch, 5)
+    settings = CriticSettings(aggregation, update, hidden, 0.01, 1e-3, "sgd", 300, batch, 5)
     ref = FitnessCritic(4, 6, settings, np.random.default_rng(0), engine="numpy")
     fast = FitnessCritic(4, 6, settings, np.random.default_rng(0), engine="numba")
     rng = np.random.default_rng(3)

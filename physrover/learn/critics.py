@@ -275,21 +275,25 @@ class FitnessCritic:
             return float("nan")
         # All mini-batches are drawn up front (one draw instead of one per batch); the
         # batches are independent uniform draws either way, and both engines draw the same.
-        if self.critics.engine == "numba" and s.update == "inexact" and s.optimizer == "sgd":
-            from physrover.learn.kernels import inexact_sgd
+        if self.critics.engine == "numba" and s.optimizer == "sgd":
+            from physrover.learn.kernels import critic_sgd
 
             index = self.buffer.sample_index(rng, s.batches * s.batch)
+            items = self.buffer.items  # (R, C, T, 10) trajectories or (R, C, 10) pairs
+            if items.ndim == 3:  # inexact: entries of one pair
+                items = items[:, :, None, :]
             c, W1T = self.critics, self.critics.W1T()
-            loss = inexact_sgd(
+            loss = critic_sgd(
                 W1T,
                 c.b1,
                 c.b2,
                 c.slope,
                 np.float32(s.lr),
-                self.buffer.items,
+                items,
                 self.buffer.feedback,
                 index,
                 s.batch,
+                s.aggregation == "max",
             )
             c.W1[...] = np.swapaxes(W1T, 1, 2)
             return float(loss)

@@ -1,6 +1,6 @@
 """Compiled kernels of the learner (see :mod:`physrover.engine`): the policy forward pass
-(reference: ``PolicyLayout.forward``) and the intermediate critics' values and inexact
-updates (reference: ``IntermediateCritics`` and ``FitnessCritic`` in
+(reference: ``PolicyLayout.forward``) and the intermediate critics' values and SGD updates,
+regular and inexact (reference: ``IntermediateCritics`` and ``FitnessCritic`` in
 :mod:`physrover.learn.critics`).
 
 The input and output sizes are the domain's and compile-time constants (8 observations, 2
@@ -175,50 +175,81 @@ def _weighted_grad(W1T, slope, xT, z, u_weights, dW1T, db1):
 
 
 @jit
-def inexact_sgd(W1T, b1, b2, slope, lr, items, feedback, index, batch):
-    """The inexact updates (Eqs. 9-10) of one generation with plain gradient steps, in place.
+def critic_sgd(W1T, b1, b2, slope, lr, items, feedback, index, batch, use_max):
+    """One generation of mini-batch gradient steps of R critics, in place; both update kinds.
 
-    Critic r's mini-batches are the replay entries ``items[r, index[r]]`` (items (R, C, 10),
-    feedback (R, C), index (R, M)), ``M // batch`` of them one after the other; for each, the
-    critic takes the step ``w += lr * sum_n delta_n grad C(x_n)`` with
-    ``delta_n = f_n - C(x_n)``, as ``FitnessCritic.update`` does. Critics are independent,
-    so each runs all its mini-batches in turn. Returns the mean of ``delta**2`` over all
-    critics and pairs (float64).
+    Critic r's mini-batches are the replay entries ``items[r, index[r]]`` (items
+    (R, C, T, 10): entries of T state-action pairs, feedback (R, C), index (R, M)),
+    ``M // batch`` of them one after the other. Per entry the critic's values of its T pairs
+    are aggregated, by their mean or (``use_max``) their maximum (the first, as
+    ``np.argmax``): ``F = agg_t C(x_t)``; with ``delta = f - F`` (Eq. 8, or Eq. 10 for T = 1)
+    the critic takes the step ``w += lr * sum_entries delta * dF/dw`` after the whole
+    mini-batch, as ``FitnessCritic.update`` does with SGD:
+
+    - regular updates (Eqs. 6-8): entries are trajectories (T = steps);
+    - inexact updates (Eqs. 9-10): entries are single pairs (T = 1, where both
+      aggregations are the value itself and the arithmetic is exactly the per-pair rule).
+
+    Critics are independent, so each runs all its mini-batches in turn. Returns the mean of
+    ``delta**2`` over all critics and entries (float64).
     """
     n_critics, n_items = index.shape
+    steps = items.shape[2]
     hidden = W1T.shape[1]
     n_batches = n_items // batch
+    n_pairs = batch * steps
     # Pairs are padded to a multiple of PAD_PAIRS with zero inputs and zero weight: they add
     # exact zeros to the gradient sums, and the pair loops get whole vector iterations.
-    padded = -(-batch // PAD_PAIRS) * PAD_PAIRS
+    padded = -(-n_pairs // PAD_PAIRS) * PAD_PAIRS
     xT = np.zeros((PAIR_DIM, padded), np.float32)
-    drawn = np.empty((n_items, PAIR_DIM), np.float32)  # one critic's draws, gathered at once
+    drawn = np.empty((n_items, steps, PAIR_DIM), np.float32)  # one critic's draws at once
     drawn_feedback = np.empty(n_items, np.float32)
     z = np.empty((hidden, padded), np.float32)
     value = np.empty(padded, np.float32)
-    delta = np.zeros(padded, np.float32)
+    weight = np.zeros(padded, np.float32)  # dF/dC(x_n) * delta of the pair's entry
     dW1T = np.empty((hidden, PAIR_DIM), np.float32)
     db1 = np.empty(hidden, np.float32)
+    inv_steps = np.float32(1.0 / steps)  # the mean's dF/dC, as the reference's float32 1/T
     sq_sum = 0.0
     for r in range(n_critics):
         W, b = W1T[r], b1[r]
-        for n in range(n_items):  # random reads, many in flight
-            slot = index[r, n]
-            drawn_feedback[n] = feedback[r, slot]
-            for i in range(PAIR_DIM):
-                drawn[n, i] = items[r, slot, i]
-        for first in range(0, n_batches * batch, batch):
-            for n in range(batch):
+        for m in range(n_items):  # random reads, many in flight
+            slot = index[r, m]
+            drawn_feedback[m] = feedback[r, slot]
+            for t in range(steps):
                 for i in range(PAIR_DIM):
-                    xT[i, n] = drawn[first + n, i]
+                    drawn[m, t, i] = items[r, slot, t, i]
+        for first in range(0, n_batches * batch, batch):
+            for j in range(batch):
+                for t in range(steps):
+                    for i in range(PAIR_DIM):
+                        xT[i, j * steps + t] = drawn[first + j, t, i]
             _critic_forward(W, b, slope, xT, z, value)
             db2 = np.float32(0.0)
-            for n in range(batch):
-                delta[n] = drawn_feedback[first + n] - (value[n] + b2[r])  # Eq. 10
-                db2 += delta[n]
-                sq_sum += np.float64(delta[n]) * np.float64(delta[n])
-            _weighted_grad(W, slope, xT, z, delta, dW1T, db1)
-            for u in range(hidden):  # Eq. 9: the step, after the whole mini-batch
+            for j in range(batch):
+                at = j * steps
+                if use_max:  # Eq. 3: the first maximum of C = value + b2
+                    arg = 0
+                    F = value[at] + b2[r]
+                    for t in range(1, steps):
+                        if value[at + t] + b2[r] > F:
+                            arg = t
+                            F = value[at + t] + b2[r]
+                else:  # Eq. 4
+                    F = np.float32(0.0)
+                    for t in range(steps):
+                        F += value[at + t] + b2[r]
+                    F /= np.float32(steps)
+                delta = drawn_feedback[first + j] - F  # Eq. 8 / Eq. 10
+                sq_sum += np.float64(delta) * np.float64(delta)
+                for t in range(steps):
+                    if use_max:
+                        weight[at + t] = delta if t == arg else np.float32(0.0)
+                    else:
+                        weight[at + t] = delta * inv_steps
+                    db2 += weight[at + t]
+            _weighted_grad(W, slope, xT, z, weight, dW1T, db1)
+            for u in range(hidden):  # Eq. 7 / Eq. 9: the step, after the whole mini-batch
                 for i in range(PAIR_DIM):
                     W[u, i] += lr * dW1T[u, i]
                 b[u] += lr * db1[u]
