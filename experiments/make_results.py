@@ -5,7 +5,9 @@
 Writes under experiments/results/: learning-curve PNGs with their CSVs (mean eval G and
 95% CI half-width per generation, per group), final-score plots with CSVs, runs.csv (one
 row per run: its config cell, seed, final score, wall time) and cells.md (the table of
-final mean G +- 95% CI per cell that RESULTS.md quotes). "Final score" of a run is its mean
+final mean G +- 95% CI per cell that RESULTS.md quotes). Sweeps missing under ``--root``
+keep their rows of runs.csv and their sections of cells.md, so sweeps can be re-made one
+at a time. "Final score" of a run is its mean
 eval G over its last ``--last`` generations; the CI is over seeds (Student t).
 """
 
@@ -53,7 +55,7 @@ def main() -> None:
     root = Path(args.root)
     OUT.mkdir(parents=True, exist_ok=True)
     summary_rows = []
-    cell_lines = []
+    cell_sections: dict[str, list[str]] = {}  # sweep -> its lines of cells.md
 
     def summarise(name: str, runs: list[plots.Run], cell_fields: tuple[str, ...], key=None):
         cells = defaultdict(list)
@@ -77,6 +79,7 @@ def main() -> None:
                     "wall_seconds": round(rows[-1]["wall_seconds"], 1),
                 }
             )
+        cell_lines = cell_sections.setdefault(name, [])
         cell_lines.append(f"\n### {name}\n")
         header = " | ".join(cell_fields)
         cell_lines.append(f"| {header} | final G (mean +- 95% CI) | seeds |")
@@ -86,25 +89,30 @@ def main() -> None:
             cols = " | ".join(str(c) for c in cell) if isinstance(cell, tuple) else cell
             cell_lines.append(f"| {cols} | {float(mean):.2f} +- {float(ci):.2f} | {n} |")
 
-    fig = root / "fig4-7"
-    if fig.exists():
-        runs = plots.load_runs(find_runs([fig]))
+    # fig4-7 (800 generations) and fig4-7-long (the paper's 5000): the same grid.
+    for name, prefix, smooth in (("fig4-7", "", 20), ("fig4-7-long", "long_", 100)):
+        fig = root / name
+        if not fig.exists():
+            continue
+        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]  # started
+        gens = max(len(r.eval_G) for r in runs)
         for n_req in sorted({r.fields["n_req"] for r in runs}):
             subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
-            table = plots.curve_table(subset, smooth=20)
+            table = plots.curve_table(subset, smooth=smooth)
             plots.plot_curves(
                 table,
-                OUT / f"fig4-6_curves_nreq{n_req}.png",
-                f"15 rovers, 4 POIs, n_req = {n_req} (20-generation moving mean)",
+                OUT / f"fig4-6_{prefix}curves_nreq{n_req}.png",
+                f"15 rovers, 4 POIs, n_req = {n_req}, {gens} generations "
+                f"({smooth}-generation moving mean)",
             )
         regroup(runs, ())
         plots.plot_final(
             plots.final_table(runs, "n_req", last=args.last),
-            OUT / "fig7_final_vs_nreq.png",
+            OUT / f"fig7_{prefix}final_vs_nreq.png",
             "n_req",
-            f"15 rovers, 4 POIs: final score (last {args.last} generations)",
+            f"15 rovers, 4 POIs, {gens} generations: final score (last {args.last})",
         )
-        summarise("fig4-7", runs, ("method", "n_req"))
+        summarise(name, runs, ("method", "n_req"))
 
     fig = root / "fig8-9"
     if fig.exists():
@@ -145,11 +153,25 @@ def main() -> None:
             key=lambda r: f"{r.fields['method']} | {r.fields['n_req']} | {motion_label(r)}",
         )
 
+    if not summary_rows:
+        raise SystemExit(f"no sweeps found under {root}")
+    # Sweeps not present under --root keep their rows and tables from the previous run.
+    kept_rows = []
+    if (OUT / "runs.csv").exists():
+        with open(OUT / "runs.csv", newline="") as f:
+            kept_rows = [row for row in csv.DictReader(f) if row["sweep"] not in cell_sections]
+    if (OUT / "cells.md").exists():
+        for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
+            name, body = section.split("\n", 1)
+            cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
+    order = ["fig4-7", "fig4-7-long", "fig8-9", "physics"]
+    rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
     with open(OUT / "runs.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))
         writer.writeheader()
-        writer.writerows(summary_rows)
-    (OUT / "cells.md").write_text("\n".join(cell_lines) + "\n")
+        writer.writerows(rows)
+    lines = [line for name in order for line in cell_sections.get(name, [])]
+    (OUT / "cells.md").write_text("\n".join(lines) + "\n")
     print(f"wrote {OUT}")
 
 
