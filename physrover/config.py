@@ -75,8 +75,10 @@ def _coerce(field: str, annotation: Any, value: Any) -> Any:
     raise TypeError(f"unsupported config field type {annotation!r} for {field}")
 
 
-class _Config:
-    """Mixin: type coercion on construction, dict/TOML conversion, unknown-key errors."""
+class ConfigBase:
+    """Mixin of every config dataclass: type coercion on construction, dict/TOML
+    conversion, unknown-key errors. Subclasses (frozen dataclasses) call
+    ``_coerce_fields()`` then validate with :func:`check` in ``__post_init__``."""
 
     #: Name of the TOML table that holds this config.
     section: ClassVar[str] = ""
@@ -123,13 +125,15 @@ class _Config:
         return cls.from_dict(data.get(cls.section, {}))
 
 
-def _check(ok: bool, field: str, message: str) -> None:
+def check(ok: bool, field: str, message: str) -> None:
+    """Raise :class:`ConfigError` naming ``field`` with ``message`` unless ``ok``."""
     if not ok:
         raise ConfigError(field, message)
 
 
-def _check_choice(value: str, choices: tuple[str, ...], field: str) -> None:
-    _check(value in choices, field, f"must be one of {', '.join(choices)}; got {value!r}")
+def check_choice(value: str, choices: tuple[str, ...], field: str) -> None:
+    """Raise :class:`ConfigError` unless ``value`` is one of ``choices``."""
+    check(value in choices, field, f"must be one of {', '.join(choices)}; got {value!r}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -138,7 +142,7 @@ def _check_choice(value: str, choices: tuple[str, ...], field: str) -> None:
 
 
 @dataclasses.dataclass(frozen=True)
-class DomainConfig(_Config):
+class DomainConfig(ConfigBase):
     """The tightly coupled multi-rover domain (paper Sections 4.1-4.2).
 
     Distances are in world units (the paper's: capture radius 4, POI ring radius 15); one
@@ -189,45 +193,45 @@ class DomainConfig(_Config):
 
     def __post_init__(self) -> None:
         self._coerce_fields()
-        _check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
-        _check(len(self.poi_values) >= 1, "poi_values", "must list at least one POI value")
+        check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
+        check(len(self.poi_values) >= 1, "poi_values", "must list at least one POI value")
         for v in self.poi_values:
-            _check(
+            check(
                 v > 0 and math.isfinite(v),
                 "poi_values",
                 f"every value must be positive and finite, got {v}",
             )
-        _check(
+        check(
             len(set(self.poi_values)) == len(self.poi_values),
             "poi_values",
             f"values must be distinct, got {list(self.poi_values)}",
         )
-        _check(
+        check(
             1 <= self.n_req <= self.n_rovers,
             "n_req",
             f"must be in [1, n_rovers={self.n_rovers}], got {self.n_req}",
         )
         for name in ("d_cap", "d_min", "poi_ring_radius", "spawn_radius"):
             value = getattr(self, name)
-            _check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
-        _check(
+            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        check(
             self.d_min <= self.d_cap,
             "d_min",
             f"must be in (0, d_cap={self.d_cap}], got {self.d_min}",
         )
-        _check(self.steps >= 1, "steps", f"must be >= 1, got {self.steps}")
-        _check_choice(self.motion, MOTION_MODELS, "motion")
+        check(self.steps >= 1, "steps", f"must be >= 1, got {self.steps}")
+        check_choice(self.motion, MOTION_MODELS, "motion")
         for name in ("rover_radius", "rover_mass", "max_force", "max_torque"):
             value = getattr(self, name)
-            _check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
-        _check(self.substeps >= 1, "substeps", f"must be >= 1, got {self.substeps}")
-        _check(
+            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        check(self.substeps >= 1, "substeps", f"must be >= 1, got {self.substeps}")
+        check(
             self.solver_iterations >= 1,
             "solver_iterations",
             f"must be >= 1, got {self.solver_iterations}",
         )
         inner = self.spawn_radius + 2 * self.rover_radius
-        _check(
+        check(
             math.isfinite(self.wall_half_size) and self.wall_half_size > inner,
             "wall_half_size",
             f"must exceed spawn_radius + 2 rover_radius = {inner}, got {self.wall_half_size}",
@@ -320,7 +324,7 @@ OPTIMIZERS = ("sgd", "adam")
 
 
 @dataclasses.dataclass(frozen=True)
-class LearnConfig(_Config):
+class LearnConfig(ConfigBase):
     """The CCEA and the fitness methods (paper Sections 2.1, 3, 4.2; defaults are the paper's).
 
     Methods: ``D`` and ``G`` use one episode's feedback as fitness; ``average`` the mean and
@@ -378,12 +382,12 @@ class LearnConfig(_Config):
 
     def __post_init__(self) -> None:
         self._coerce_fields()
-        _check_choice(self.method, METHODS, "method")
-        _check_choice(self.feedback, FEEDBACKS, "feedback")
-        _check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
-        _check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
-        _check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
-        _check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
+        check_choice(self.method, METHODS, "method")
+        check_choice(self.feedback, FEEDBACKS, "feedback")
+        check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
+        check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
+        check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
+        check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
         for name in (
             "hidden",
             "n_samples",
@@ -398,16 +402,16 @@ class LearnConfig(_Config):
             "checkpoint_every",
         ):
             value = getattr(self, name)
-            _check(value >= 1, name, f"must be >= 1, got {value}")
-        _check(
+            check(value >= 1, name, f"must be >= 1, got {value}")
+        check(
             0.0 <= self.mutation_rate <= 1.0,
             "mutation_rate",
             f"must be in [0, 1], got {self.mutation_rate}",
         )
         for name in ("mutation_scale", "critic_lr"):
             value = getattr(self, name)
-            _check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
-        _check(
+            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        check(
             0.0 <= self.leaky_slope < 1.0,
             "leaky_slope",
             f"must be in [0, 1), got {self.leaky_slope}",

@@ -18,7 +18,7 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
-from physrover.config import DomainConfig, _check, _Config
+from physrover.config import ConfigBase, DomainConfig, check
 
 BACKGROUND = (246, 246, 246)  # BGR
 POI_FREE = (150, 150, 150)
@@ -43,7 +43,7 @@ def rover_rgb(index: int) -> tuple[int, int, int]:
 
 
 @dataclass(frozen=True)
-class RenderConfig(_Config):
+class RenderConfig(ConfigBase):
     """Frame and video settings."""
 
     section: ClassVar[str] = "render"
@@ -63,13 +63,13 @@ class RenderConfig(_Config):
         self._coerce_fields()
         for name in ("width", "height", "fps"):
             value = getattr(self, name)
-            _check(
+            check(
                 16 <= value <= 8192 if name != "fps" else 1 <= value <= 240,
                 name,
                 f"out of range, got {value}",
             )
-        _check(self.trail >= 0, "trail", f"must be >= 0, got {self.trail}")
-        _check(self.margin >= 0, "margin", f"must be >= 0, got {self.margin}")
+        check(self.trail >= 0, "trail", f"must be >= 0, got {self.trail}")
+        check(self.margin >= 0, "margin", f"must be >= 0, got {self.margin}")
 
 
 @dataclass(frozen=True)
