@@ -108,7 +108,9 @@ class RoverWorld:
     and ``actions`` (steps, E, R, 2), float32, hold the trajectory: row t is the pair
     (s_t, a_t) of step t, valid for t < ``self.t``; ``position_history`` (steps + 1, E, R, 2)
     and ``heading_history`` (steps + 1, E, R) the states after reset and every step, valid
-    for rows <= ``self.t``.
+    for rows <= ``self.t``. All of these are reused by the next episode, and
+    ``rover_positions``/``rover_headings`` may be views of the current history row: copy
+    what you keep (the envs' infos hold copies).
     """
 
     def __init__(self, config: DomainConfig, n_teams: int, engine: str | None = None):
