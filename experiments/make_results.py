@@ -114,18 +114,22 @@ def main() -> None:
         )
         summarise(name, runs, ("method", "n_req"))
 
-    fig = root / "fig8-9"
-    if fig.exists():
-        runs = plots.load_runs(find_runs([fig]))
+    # fig8-9 (400 generations) and fig8-9-long (2000): the same grid.
+    for name, prefix in (("fig8-9", ""), ("fig8-9-long", "long_")):
+        fig = root / name
+        if not fig.exists():
+            continue
+        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]  # started
+        gens = max(len(r.eval_G) for r in runs)
         for n_req in sorted({r.fields["n_req"] for r in runs}):
             subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
             plots.plot_final(
                 plots.final_table(subset, "n_rovers", last=args.last),
-                OUT / f"fig8-9_final_vs_rovers_nreq{n_req}.png",
+                OUT / f"fig8-9_{prefix}final_vs_rovers_nreq{n_req}.png",
                 "n_rovers",
-                f"4 POIs, n_req = {n_req}: final score (last {args.last} gens)",
+                f"4 POIs, n_req = {n_req}, {gens} generations: final score (last {args.last})",
             )
-        summarise("fig8-9", runs, ("method", "n_req", "n_rovers"))
+        summarise(name, runs, ("method", "n_req", "n_rovers"))
 
     fig = root / "physics"
     if fig.exists():
@@ -164,7 +168,7 @@ def main() -> None:
         for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
             name, body = section.split("\n", 1)
             cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
-    order = ["fig4-7", "fig4-7-long", "fig8-9", "physics"]
+    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics"]
     rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
     with open(OUT / "runs.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))
