@@ -128,6 +128,29 @@ def write_csv(table: dict, path: Path, x_name: str) -> None:
                 writer.writerow([group, f"{xv:g}", repr(float(m)), repr(float(c)), int(k)])
 
 
+# One colour per method in every figure (matplotlib's default cycle, in the order of the
+# paper's Figs 4-7 first); groups that are not a bare method name take the cycle in order.
+METHOD_COLOURS = {
+    "D": "C0",
+    "average": "C1",
+    "max-critic": "C2",
+    "mean-critic": "C3",
+    "G": "C4",
+    "leniency": "C5",
+    "hall-of-fame": "C6",
+    "max-critic-regular": "C7",
+    "mean-critic-inexact": "C8",
+}
+
+
+def group_colours(groups) -> dict[str, str | None]:
+    """A colour per group: the method's own for a bare method name, else ``None`` (the
+    axes' cycle), so a method keeps its colour across figures."""
+    if all(g in METHOD_COLOURS for g in groups):
+        return {g: METHOD_COLOURS[g] for g in groups}
+    return dict.fromkeys(groups)
+
+
 def _axes(title: str):
     import matplotlib
 
@@ -143,8 +166,14 @@ def _axes(title: str):
 def plot_curves(table: dict, out: Path, title: str = "") -> Path:
     """Mean performance score per generation with 95% CI bands (like the paper's Figs 4-6)."""
     fig, ax, plt = _axes(title)
+    colours = group_colours(table)
     for group, cols in table.items():
-        (line,) = ax.plot(cols["generation"], cols["mean"], label=f"{group} (n={cols['n']})")
+        (line,) = ax.plot(
+            cols["generation"],
+            cols["mean"],
+            label=f"{group} (n={cols['n']})",
+            color=colours[group],
+        )
         if cols["n"] > 1:
             low, high = cols["mean"] - cols["ci"], cols["mean"] + cols["ci"]
             ax.fill_between(cols["generation"], low, high, color=line.get_color(), alpha=0.2)
@@ -161,9 +190,18 @@ def plot_curves(table: dict, out: Path, title: str = "") -> Path:
 def plot_final(table: dict, out: Path, x: str, title: str = "") -> Path:
     """Final mean performance score against a config field (like the paper's Figs 7-9)."""
     fig, ax, plt = _axes(title)
+    colours = group_colours(table)
     for group, cols in table.items():
         ci = np.nan_to_num(cols["ci"])
-        ax.errorbar(cols["x"], cols["mean"], yerr=ci, marker="o", capsize=3, label=group)
+        ax.errorbar(
+            cols["x"],
+            cols["mean"],
+            yerr=ci,
+            marker="o",
+            capsize=3,
+            label=group,
+            color=colours[group],
+        )
     ax.set_xlabel({"n_req": "Coupling (n_req)", "n_rovers": "Number of rovers"}.get(x, x))
     ax.set_ylabel("Mean performance score (G)")
     ax.legend(fontsize=8)

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from physrover import RoverEnv
+from physrover import RoverEnv, plots
 from physrover.config import RunConfig
 from physrover.plots import curve_table, final_table, load_runs, mean_ci, t975, write_csv
 from physrover.render import RenderConfig, Transform, VideoError, VideoWriter, rover_rgb
@@ -151,3 +151,15 @@ def test_final_numbers_by_field(tmp_path):
     np.testing.assert_allclose(table["D"]["mean"], [5.0, 1.0])
     mean, ci, n = mean_ci(np.array([4.0, 6.0]))
     assert table["D"]["ci"][0] == ci == pytest.approx(12.706 * np.sqrt(2) / np.sqrt(2))
+
+
+def test_a_method_keeps_its_colour_across_figures():
+    from physrover.config import METHODS
+
+    assert set(plots.METHOD_COLOURS) == set(METHODS)
+    assert len(set(plots.METHOD_COLOURS.values())) == len(METHODS)
+    four = plots.group_colours(["D", "average", "max-critic", "mean-critic"])
+    three = plots.group_colours(["average", "max-critic", "mean-critic"])
+    assert all(three[m] == four[m] for m in three)
+    # labels that are not bare method names fall back to the axes' colour cycle
+    assert plots.group_colours(["D ideal", "D physics"]) == {"D ideal": None, "D physics": None}
