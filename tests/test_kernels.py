@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 from physrover.config import DomainConfig, RunConfig
-from physrover.domain.kernels import ideal_move
 from physrover.domain.motion import commanded_move
 from physrover.domain.world import RoverWorld, Scenario
 from physrover.engine import ENV_VAR, resolve
@@ -91,18 +90,22 @@ def test_the_state_is_the_last_history_row():
     np.testing.assert_array_equal(world.rover_headings, world.heading_history[world.t])
 
 
-def test_ideal_move_kernel_matches_the_reference():
+def test_the_compiled_move_matches_the_reference():
     rng = np.random.default_rng(1)
     positions = rng.uniform(-5, 5, (3, 4, 2))
     headings = rng.uniform(-np.pi, np.pi, (3, 4))
     actions = rng.uniform(-1, 1, (3, 4, 2))
     actions[0, 0] = 0.0
-    new_positions, new_headings = np.empty_like(positions), np.empty_like(headings)
-    ideal_move(positions, headings, actions, new_positions, new_headings)
+    world = RoverWorld(DomainConfig(n_rovers=4, steps=2), 3, engine="numba")
+    world.reset(
+        [np.random.default_rng(e) for e in range(3)],
+        Scenario(rover_positions=positions, rover_headings=headings),
+    )
+    world.step(actions)
     move, expected_headings = commanded_move(actions, headings)
-    np.testing.assert_allclose(new_positions, positions + move, rtol=0, atol=1e-14)
-    np.testing.assert_allclose(new_headings, expected_headings, rtol=0, atol=1e-14)
-    assert new_headings[0, 0] == headings[0, 0]  # no move, no turn
+    np.testing.assert_allclose(world.rover_positions, positions + move, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(world.rover_headings, expected_headings, rtol=0, atol=1e-14)
+    assert world.rover_headings[0, 0] == headings[0, 0]  # no move, no turn
 
 
 def test_critic_values_match_the_reference():

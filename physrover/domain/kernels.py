@@ -4,9 +4,9 @@
   :mod:`physrover.domain.geometry`) + sensing (Eqs. 15-16, :mod:`physrover.domain.sensing`)
   + scoring of one step (Eqs. 11-13 and the counterfactual counts of D,
   :mod:`physrover.domain.scoring`) in one pass over the rover-object pairs;
-- :func:`ideal_move`: the idealised kinematics of :mod:`physrover.domain.motion`;
 - :func:`ideal_step`: a whole idealised world step in one call (check and clip the actions,
-  move, observe, score, record), so that a step costs one call instead of a dozen.
+  move as :mod:`physrover.domain.motion`, observe, score, record), so that a step costs one
+  call instead of a dozen.
 
 The numpy modules named are the reference these kernels are tested against.
 
@@ -170,24 +170,6 @@ def observe_and_score(
             d_cap * d_cap, n_req, t, captured, captured_without, capture_step, score, obs,
             count, near, acc,
         )  # fmt: skip
-
-
-@jit
-def ideal_move(positions, headings, actions, new_positions, new_headings):
-    """The idealised move (``motion.IdealMotion.step``) of (E, R) rovers into the outputs."""
-    n_teams, n_rovers = headings.shape
-    for e in range(n_teams):
-        for i in range(n_rovers):
-            heading = headings[e, i]
-            mx, my, new_headings[e, i] = _move(
-                math.cos(heading),
-                math.sin(heading),
-                heading,
-                np.float64(actions[e, i, 0]),
-                np.float64(actions[e, i, 1]),
-            )
-            new_positions[e, i, 0] = positions[e, i, 0] + mx
-            new_positions[e, i, 1] = positions[e, i, 1] + my
 
 
 @jit

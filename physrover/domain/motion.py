@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from physrover.engine import resolve
-
 
 def body_to_world(vectors: np.ndarray, headings: np.ndarray) -> np.ndarray:
     """Rotate (E, R, 2) vectors from each rover's frame into the world frame."""
@@ -37,14 +35,11 @@ def commanded_move(actions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarra
 class IdealMotion:
     """Stateless idealised kinematics; see the module docstring.
 
-    ``engine`` picks the compiled kernel (``"numba"``) or this module's numpy code
-    (``"numpy"``); default from ``PHYSROVER_ENGINE`` (:mod:`physrover.engine`).
+    This is the numpy reference. Under the compiled engine ``RoverWorld`` does not call
+    :meth:`step`: its one-call step (``domain.kernels.ideal_step``) moves the rovers itself.
     """
 
     name = "ideal"
-
-    def __init__(self, engine: str | None = None):
-        self.engine = resolve(engine)
 
     def reset(self, positions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nothing to rebuild: the idealised model has no state of its own."""
@@ -63,11 +58,5 @@ class IdealMotion:
         Returns:
             New positions (E, R, 2) and headings (E, R) in (-pi, pi].
         """
-        if self.engine == "numba":
-            from physrover.domain.kernels import ideal_move
-
-            new_positions, new_headings = np.empty(positions.shape), np.empty(headings.shape)
-            ideal_move(positions, headings, actions, new_positions, new_headings)
-            return new_positions, new_headings
         move, new_headings = commanded_move(actions, headings)
         return positions + move, new_headings

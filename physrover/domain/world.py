@@ -82,10 +82,10 @@ def _team_array(name: str, value: Any, shape: tuple[int, ...], n_teams: int) -> 
     return np.array(arr)
 
 
-def make_motion(config: DomainConfig, n_teams: int, engine: str | None = None):
+def make_motion(config: DomainConfig, n_teams: int):
     """The motion model named by ``config.motion``."""
     if config.motion == "ideal":
-        return IdealMotion(engine)
+        return IdealMotion()
     if config.motion == "physics":
         from physrover.domain.physics import PhysicsMotion
 
@@ -123,7 +123,7 @@ class RoverWorld:
         self.n_rovers = config.n_rovers
         self.n_pois = config.n_pois
         self.engine = engines.resolve(engine)
-        self.motion = make_motion(config, self.n_teams, self.engine)
+        self.motion = make_motion(config, self.n_teams)
         self.scores = ScoreKeeper(config.n_req)
         shape = (config.steps, self.n_teams, self.n_rovers)
         self.observations = np.zeros((*shape, OBS_DIM), dtype=np.float32)
