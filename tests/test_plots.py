@@ -1,12 +1,15 @@
-"""Learning-curve and final-score numbers (plots.py)."""
+"""Learning-curve and final-score numbers and figures (plots.py)."""
 
 import csv
+import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from physrover import plots
 from physrover.config import RunConfig
+from physrover.learn.ccea import stats_header
 from physrover.plots import curve_table, final_table, load_runs, mean_ci, t975, write_csv
 from physrover.runs import prepare_run_dir
 
@@ -17,13 +20,41 @@ def test_t_quantiles():
     assert t975(1000) == pytest.approx(1.9623, abs=2e-4)
 
 
-def _fake_run(root, name, method, n_req, curve):
-    config = RunConfig().with_overrides({"method": method, "n_req": n_req})
+def _fake_run(root, name, method, n_req, curve, **overrides):
+    """A run directory with ``curve`` as eval G of generations 1, 2, ... (the config: the
+    defaults with ``method``, ``n_req`` and any other ``overrides`` by field name)."""
+    config = RunConfig().with_overrides({"method": method, "n_req": n_req, **overrides})
     prepare_run_dir(root / name, config)
     with open(root / name / "metrics.csv", "a", newline="") as f:
-        for g, value in enumerate(curve):
-            f.write(f"{g},{value},0,0,nan,0\n")
+        writer = csv.DictWriter(f, fieldnames=stats_header())
+        for g, value in enumerate(curve, start=1):
+            writer.writerow({k: 0 for k in stats_header()} | {"generation": g, "eval_G": value})
     return root / name
+
+
+def _csv_rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The figures the code saves, as they are when saved (plots close them after)."""
+    from matplotlib.figure import Figure
+
+    saved = []
+    original = Figure.savefig
+
+    def savefig(self, *args, **kwargs):
+        saved.append(self)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    return saved
+
+
+def _legend(fig) -> list[str]:
+    return [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
 
 
 def test_curve_numbers(tmp_path):
@@ -34,30 +65,205 @@ def test_curve_numbers(tmp_path):
         _fake_run(tmp_path, "d", "max-critic", 3, [5.0, 5.0, 5.0]),
     ]
     table = curve_table(load_runs(runs))
+    assert list(table) == ["D", "max-critic"]  # only the method differs: bare names
     d = table["D"]
+    np.testing.assert_array_equal(d["generation"], [1, 2, 3])  # the metrics' numbering
     np.testing.assert_allclose(d["mean"], [1.0, 2.0, 4.0])
-    # sd over seeds at generation 0: sd(0, 2, 1) = 1; half-width = t(2) * 1 / sqrt(3).
+    # sd over seeds at generation 1: sd(0, 2, 1) = 1; half-width = t(2) * 1 / sqrt(3).
     np.testing.assert_allclose(d["ci"][0], 4.303 / np.sqrt(3))
     np.testing.assert_allclose(d["ci"][2], 4.303 * 2.0 / np.sqrt(3))
     assert d["n"] == 3 and np.isnan(table["max-critic"]["ci"]).all()
+    assert table.messages == ["D: 3 runs cut to the shortest, 3 generations (longest 4)"]
     write_csv(table, tmp_path / "c.csv", "generation")
-    rows = list(csv.DictReader(open(tmp_path / "c.csv")))
+    rows = _csv_rows(tmp_path / "c.csv")
     half = repr(float(4.303 * 2 / np.sqrt(3)))
-    expected = {"group": "D", "generation": "2", "mean": "4.0", "ci95_half_width": half, "n": "3"}
+    expected = {
+        "group": "D",
+        "generation": "3",
+        "mean": "4.0",
+        "ci95_half_width": half,
+        "n": "3",
+        "raw_mean": "4.0",
+        "raw_ci95_half_width": half,
+        "smooth_window": "1",
+    }
     assert rows[2] == expected
 
 
-def test_final_numbers_by_field(tmp_path):
+def test_generations_come_from_the_metrics(tmp_path):
+    run = _fake_run(tmp_path, "a", "D", 3, [1.0, 2.0, 3.0])
+    lines = (run / "metrics.csv").read_text().splitlines()
+    # the run's rows are generations 5..7 (as a resumed, trimmed file might hold)
+    shifted = [lines[0]] + [
+        f"{g + 4}{line[line.index(',') :]}" for g, line in enumerate(lines[1:], 1)
+    ]
+    (run / "metrics.csv").write_text("\n".join(shifted) + "\n")
+    (loaded,) = load_runs([run])
+    np.testing.assert_array_equal(loaded.generation, [5, 6, 7])
+    np.testing.assert_array_equal(curve_table([loaded])["D"]["generation"], [5, 6, 7])
+
+
+def test_runs_differing_in_a_config_field_are_never_pooled(tmp_path):
+    runs = [
+        _fake_run(tmp_path, "a", "max-critic", 3, [1.0, 2.0]),
+        _fake_run(tmp_path, "b", "max-critic", 4, [3.0, 4.0]),
+    ]
+    table = curve_table(load_runs(runs))
+    assert list(table) == ["max-critic n_req=3", "max-critic n_req=4"]
+    assert table["max-critic n_req=3"]["n"] == 1
+    np.testing.assert_allclose(table["max-critic n_req=4"]["mean"], [3.0, 4.0])
+    # --by adds its fields to the label even when they are equal
+    labels = {r.group for r in load_runs(runs, by=("motion",))}
+    assert labels == {"max-critic n_req=3 motion=ideal", "max-critic n_req=4 motion=ideal"}
+
+
+def test_runs_differing_only_in_seed_are_pooled(tmp_path):
+    runs = [
+        _fake_run(tmp_path, "a", "D", 3, [1.0, 2.0], seed=0),
+        _fake_run(tmp_path, "b", "D", 3, [3.0, 4.0], seed=1, checkpoint_every=7),
+    ]
+    table = curve_table(load_runs(runs))
+    assert list(table) == ["D"] and table["D"]["n"] == 2
+    np.testing.assert_allclose(table["D"]["mean"], [2.0, 3.0])
+    assert table.messages == []
+
+
+def test_runs_of_different_lengths_in_generations_are_not_pooled(tmp_path):
+    runs = [
+        _fake_run(tmp_path, "a", "max-critic", 3, [1.0, 2.0, 3.0], generations=300),
+        _fake_run(tmp_path, "b", "max-critic", 3, [1.0, 2.0], generations=2000, seed=1),
+        _fake_run(tmp_path, "c", "max-critic", 4, [5.0, 6.0], generations=2000),
+    ]
+    table = curve_table(load_runs(runs))
+    assert sorted(table) == [
+        "max-critic n_req=3 generations=2000",
+        "max-critic n_req=3 generations=300",
+        "max-critic n_req=4 generations=2000",
+    ]
+    assert all(cols["n"] == 1 for cols in table.values())
+    np.testing.assert_array_equal(
+        table["max-critic n_req=3 generations=300"]["generation"], [1, 2, 3]
+    )
+    assert table.messages == []  # nothing was cut
+
+
+def test_band_is_clipped_to_the_range_of_G_but_the_csv_is_raw(tmp_path, figures):
+    g_max = 10.0  # default POI values 1..4
+    runs = [
+        _fake_run(tmp_path, "a", "D", 3, [0.0, 10.0], seed=0),
+        _fake_run(tmp_path, "b", "D", 3, [1.0, 9.0], seed=1),
+    ]
+    table = curve_table(load_runs(runs))
+    cols = table["D"]
+    assert cols["g_max"] == g_max
+    raw_low, raw_high = cols["mean"] - cols["ci"], cols["mean"] + cols["ci"]
+    assert raw_low[0] < 0 and raw_high[1] > g_max  # the case the clipping is for
+    low, high = plots.band(cols["mean"], cols["ci"], cols["g_max"])
+    np.testing.assert_allclose(low, [0.0, raw_low[1]])
+    np.testing.assert_allclose(high, [raw_high[0], g_max])
+
+    out = plots.plot_curves(table, tmp_path / "curves.png")
+    (poly,) = figures[0].axes[0].collections  # the band drawn
+    y = poly.get_paths()[0].vertices[:, 1]
+    assert y.min() == pytest.approx(0.0) and y.max() == pytest.approx(g_max)
+    rows = _csv_rows(out.with_suffix(".csv"))
+    lows = [float(r["mean"]) - float(r["ci95_half_width"]) for r in rows]
+    highs = [float(r["mean"]) + float(r["ci95_half_width"]) for r in rows]
+    assert lows[0] < 0 and lows[0] == pytest.approx(raw_low[0])
+    assert highs[1] > g_max and highs[1] == pytest.approx(raw_high[1])
+
+
+def test_final_error_bars_are_clipped(tmp_path, figures):
+    runs = [
+        _fake_run(tmp_path, "a", "D", 3, [0.0, 0.0], seed=0),
+        _fake_run(tmp_path, "b", "D", 3, [0.0, 1.0], seed=1),
+    ]
+    table = final_table(load_runs(runs, x="n_req"), "n_req")
+    assert table["D"]["mean"][0] - table["D"]["ci"][0] < 0
+    out = plots.plot_final(table, tmp_path / "final.png", "n_req")
+    bars = [c for c in figures[0].axes[0].collections if len(c.get_segments())]
+    (segment,) = bars[0].get_segments()
+    assert segment[:, 1].min() == pytest.approx(0.0)
+    assert segment[:, 1].max() == pytest.approx(0.5 + table["D"]["ci"][0])
+    (row,) = _csv_rows(out.with_suffix(".csv"))
+    assert float(row["mean"]) - float(row["ci95_half_width"]) < 0  # raw in the CSV
+
+
+def test_smoothing_is_stated_and_raw_values_kept(tmp_path, figures):
+    run = _fake_run(tmp_path, "demo", "max-critic", 3, [0.0, 2.0, 4.0, 6.0])
+    result = plots.make_curves([run], run / "learning_curve.png", smooth=2)
+    assert result.png == run / "learning_curve.png" and result.png.exists()
+    legend = _legend(figures[0])
+    assert "max-critic (n=1, 2-generation moving mean)" in legend
+    assert "max G" in legend
+    (max_line,) = [line for line in figures[0].axes[0].lines if line.get_label() == "max G"]
+    assert set(max_line.get_ydata()) == {10.0} and max_line.get_linestyle() == "--"
+    rows = _csv_rows(result.csv)
+    assert list(rows[0]) == plots.CURVE_COLUMNS
+    assert [float(r["mean"]) for r in rows] == [0.0, 1.0, 3.0, 5.0]
+    assert [float(r["raw_mean"]) for r in rows] == [0.0, 2.0, 4.0, 6.0]
+    assert {r["smooth_window"] for r in rows} == {"2"}
+    # unsmoothed: no note in the legend
+    plots.make_curves([run], tmp_path / "raw.png")
+    assert "max-critic (n=1)" in _legend(figures[1])
+
+
+def test_default_out(tmp_path):
+    assert plots.default_out(["runs/a"]) == Path("runs/a/curves.png")
+    assert plots.default_out(["runs/a", "runs/demo"]) == Path("runs/curves.png")
+    assert plots.default_out(["runs/a", "runs/demo"], "n_req") == Path("runs/final_n_req.png")
+    assert plots.default_out(["x/s/a", "x/t/b/"]) == Path("x/curves.png")
+    assert plots.default_out(["a", "b"]) == Path("curves.png")
+    assert (
+        plots.default_out([tmp_path / "r" / "a", tmp_path / "r" / "b"])
+        == tmp_path / "r" / "curves.png"
+    )
+
+
+def test_default_title_and_output(tmp_path, figures):
+    runs = [
+        _fake_run(tmp_path, "a", "D", 3, [1.0], generations=2000, seed=0),
+        _fake_run(tmp_path, "b", "max-critic", 3, [2.0], generations=2000, seed=1),
+    ]
+    title = "15 rovers, n_req 3, ideal motion, 2000 generations"
+    assert plots.default_title(load_runs(runs)) == title
+    result = plots.make_curves(runs)
+    assert result.png == tmp_path / "curves.png" and result.csv.exists()
+    assert figures[0].axes[0].get_title() == title
+    mixed = runs + [_fake_run(tmp_path, "c", "D", 4, [1.0], generations=300, motion="physics")]
+    assert plots.default_title(load_runs(mixed)) == "15 rovers"
+    plots.make_curves(runs, tmp_path / "t.png", title="mine")
+    assert figures[1].axes[0].get_title() == "mine"
+
+
+def test_messages_name_runs_cut_to_the_shortest(tmp_path):
+    runs = [
+        _fake_run(tmp_path, "a", "max-critic", 3, [1.0] * 5, seed=0),
+        _fake_run(tmp_path, "b", "max-critic", 3, [1.0] * 3, seed=1),  # unfinished
+    ]
+    result = plots.make_curves(runs, tmp_path / "c.png")
+    assert result.messages == ["max-critic: 2 runs cut to the shortest, 3 generations (longest 5)"]
+    assert len(_csv_rows(result.csv)) == 3
+
+
+def test_final_numbers_by_field(tmp_path, figures):
     runs = [
         _fake_run(tmp_path, "a", "D", 3, [0.0, 4.0]),
-        _fake_run(tmp_path, "b", "D", 3, [0.0, 6.0]),
+        _fake_run(tmp_path, "b", "D", 3, [0.0, 6.0], seed=1),
         _fake_run(tmp_path, "c", "D", 5, [0.0, 1.0]),
     ]
-    table = final_table(load_runs(runs), "n_req", last=1)
+    table = final_table(load_runs(runs, x="n_req"), "n_req", last=1)
+    assert list(table) == ["D"]  # the x field does not split groups
     np.testing.assert_allclose(table["D"]["x"], [3, 5])
     np.testing.assert_allclose(table["D"]["mean"], [5.0, 1.0])
     mean, ci, n = mean_ci(np.array([4.0, 6.0]))
     assert table["D"]["ci"][0] == ci == pytest.approx(12.706 * np.sqrt(2) / np.sqrt(2))
+    result = plots.make_final(runs, "n_req", last=2)
+    assert result.png == tmp_path / "final_n_req.png" and result.png.exists()
+    assert figures[0].axes[0].get_ylabel() == "Final score: G, mean of the last 2 generations"
+    rows = _csv_rows(result.csv)
+    assert list(rows[0]) == ["group", "n_req", "mean", "ci95_half_width", "n"]
+    assert [(r["n_req"], r["mean"], r["n"]) for r in rows] == [("3", "2.5", "2"), ("5", "0.5", "1")]
 
 
 def test_a_method_keeps_its_colour_across_figures():
@@ -70,3 +276,13 @@ def test_a_method_keeps_its_colour_across_figures():
     assert all(three[m] == four[m] for m in three)
     # labels that are not bare method names fall back to the axes' colour cycle
     assert plots.group_colours(["D ideal", "D physics"]) == {"D ideal": None, "D physics": None}
+    # ... unless each names its method and no two groups share one
+    methods = {"D n_req=4": "D", "max-critic n_req=4": "max-critic"}
+    assert plots.group_colours(methods, methods) == {"D n_req=4": "C0", "max-critic n_req=4": "C2"}
+    shared = {"D n_req=3": "D", "D n_req=4": "D", "max-critic n_req=4": "max-critic"}
+    assert set(plots.group_colours(shared, shared).values()) == {None}
+
+
+def test_band_of_a_single_run_is_nan():
+    low, high = plots.band(np.array([1.0, 2.0]), np.array([math.nan, math.nan]), 10.0)
+    assert np.isnan(low).all() and np.isnan(high).all()
