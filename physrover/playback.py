@@ -1,10 +1,15 @@
-"""Play a run's champion team in the single env and record the episodes to MP4.
+"""Play a run's champion team in the single env and record the episodes to H.264 MP4.
 
 ``record_run`` is what ``physrover render`` calls: it loads the run's config and the
 champion genomes saved at a checkpoint, plays ``episodes`` episodes (seeds ``seed``,
 ``seed + 1``, ...) and writes one frame per step (``steps + 1`` per episode). With
 ``side_by_side`` the same team and start state run under the idealised and the physical
-model, the two frames next to each other.
+model, the two frames next to each other with a dark bar of :data:`DIVIDER_PX` pixels
+between them.
+
+Each episode is played to its end first (:func:`play` keeps the state of every step), then
+drawn in one view (:meth:`~physrover.render.Transform.fit_states`) that holds the POIs and
+every position of every rover of the episode, common to both panels so they compare.
 """
 
 from __future__ import annotations
@@ -17,7 +22,15 @@ import numpy as np
 from physrover.config import DomainConfig
 from physrover.envs import RoverEnv
 from physrover.learn.policies import PolicyLayout
-from physrover.render import RenderConfig, VideoWriter, label
+from physrover.render import (
+    FrameState,
+    RenderConfig,
+    Transform,
+    VideoWriter,
+    draw_frame,
+    label,
+    world_state,
+)
 from physrover.runs import CHAMPIONS, RunError, load_run_config
 
 
@@ -43,15 +56,33 @@ def load_champions(run_dir: Path, checkpoint: int | None = None) -> tuple[int, n
     return checkpoint, np.load(found[checkpoint])
 
 
-def play(env: RoverEnv, layout: PolicyLayout, genomes: np.ndarray, seed: int):
-    """Yield the frames of one episode (reset, then every step); the last G is env.world.G."""
+DIVIDER_PX = 4
+"""Width of the bar between side-by-side panels, pixels (even, so the video width stays even)."""
+DIVIDER_RGB = (40, 40, 40)
+"""Colour of that bar (dark grey, the colour of the text)."""
+
+
+def play(env: RoverEnv, layout: PolicyLayout, genomes: np.ndarray, seed: int) -> list[FrameState]:
+    """Play one episode; the states of its ``steps + 1`` frames (reset, then every step).
+
+    The last G is also ``env.world.G``."""
     obs, _ = env.reset(seed=seed)
-    yield env.render()
+    states = [world_state(env.world, 0)]
     truncated = False
     while not truncated:
         action = layout.act(genomes[None], obs[None])[0]
         obs, _, _, truncated, _ = env.step(action)
-        yield env.render()
+        states.append(world_state(env.world, 0))
+    return states
+
+
+def join_panels(frames: list[np.ndarray]) -> np.ndarray:
+    """(H, n W + (n - 1) DIVIDER_PX, 3) RGB: the (H, W, 3) frames left to right, separated
+    by dark bars."""
+    bar = np.empty((frames[0].shape[0], DIVIDER_PX, 3), dtype=np.uint8)
+    bar[:] = DIVIDER_RGB
+    parts = [bar if j % 2 else frames[j // 2] for j in range(2 * len(frames) - 1)]
+    return np.concatenate(parts, axis=1)
 
 
 def record_run(
@@ -73,17 +104,22 @@ def record_run(
     domains: list[DomainConfig] = [config.domain]
     if side_by_side:
         domains = [config.domain.replace(motion="ideal"), config.domain.replace(motion="physics")]
-    envs = [RoverEnv(config=d, render_mode="rgb_array", render_config=render) for d in domains]
-    width = render.width * len(envs)
+    envs = [RoverEnv(config=d) for d in domains]
+    width = render.width * len(envs) + DIVIDER_PX * (len(envs) - 1)
     scores = []
     with VideoWriter(out, width, render.height, render.fps) as video:
         for episode in range(episodes):
-            streams = [play(env, layout, genomes, seed + episode) for env in envs]
-            for frames in zip(*streams, strict=True):
+            played = [play(env, layout, genomes, seed + episode) for env in envs]
+            # One view for the whole episode and every panel: the last states hold it all.
+            view = Transform.fit_states([states[-1] for states in played], config.domain, render)
+            for states in zip(*played, strict=True):
                 tagged = [
-                    label(f, f"{env.config.motion}  gen {generation}  episode {episode + 1}")
-                    for f, env in zip(frames, envs, strict=True)
+                    label(
+                        draw_frame(state, env.config, render, view),
+                        f"{env.config.motion}  gen {generation}  episode {episode + 1}",
+                    )
+                    for state, env in zip(states, envs, strict=True)
                 ]
-                video.write(np.concatenate(tagged, axis=1))
+                video.write(join_panels(tagged))
             scores.extend(float(env.world.G[0]) for env in envs)
     return out, scores

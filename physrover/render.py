@@ -1,35 +1,69 @@
-"""Off-screen episode rendering with OpenCV (no display, no GL) and checked MP4 writing.
+"""Off-screen episode rendering with OpenCV (no display, no GL) and checked H.264 MP4 writing.
 
-A frame shows one team: POIs as circles sized by value, with their capture-radius ring,
-grey until captured and green from the step of capture; each rover as a filled circle in
-its own colour (consistent by index) with a heading tick and a trail of its last positions;
-a HUD with the step, G, n_req and the motion model (and, for physics, collisions on/off).
+A frame shows one team:
 
-World-to-pixel transform: the view is centred on the origin and fits the POI ring plus the
-capture radius plus a margin; world y points up on screen.
+- POIs as circles sized by value, with their capture-radius ring, grey until captured and
+  green from the step of capture, labelled with their value (above right) and ``n/n_req``
+  (under the ring): the rovers within ``d_cap`` of the POI now (:func:`rovers_in_range`, the
+  scoring's comparison) against the coupling, green when it is met now.
+- Each rover as a filled circle in its own colour (consistent by index; no greys or greens,
+  so a rover never looks like a POI) with a thin dark outline, so overlapping bodies stay
+  distinct, a heading tick and a trail of its last positions.
+- While the team is a tight clump (the spawn disc at the first steps), a zoomed inset of it
+  at the top right, its area marked by a grey rectangle in the main view.
+- A HUD with the step, G, n_req and the motion model (and, for physics, collisions on/off).
+
+World-to-pixel transform (:class:`Transform`): one scale for x and y (equal aspect), world
+y up on screen, fitted to a box holding every POI with its capture ring and every rover
+position given, plus ``margin`` world units. :func:`draw_frame` fits the trajectory so far
+(so ``RoverEnv.render()`` zooms out as rovers leave and never back in);
+:mod:`physrover.playback` plays a whole episode first and draws every frame (and both
+panels of a side-by-side video) with one view that holds the whole episode.
+
+Videos (:class:`VideoWriter`) are H.264 (libx264, yuv420p) MP4 written with PyAV, which
+browsers, GitHub and VS Code play; yuv420p needs even frame sizes, which
+:class:`RenderConfig` requires (no hidden padding: a frame is the video's size).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from typing import ClassVar
 
+import av
 import cv2
 import numpy as np
 
 from physrover.config import ConfigBase, DomainConfig, check
+from physrover.domain.scoring import in_range
 
 BACKGROUND = (246, 246, 246)  # BGR
 POI_FREE = (150, 150, 150)
 POI_CAPTURED = (60, 170, 60)
 TEXT = (40, 40, 40)
-# Rover colours (BGR), cycled by index: a colour-blind-friendly qualitative palette.
-PALETTE = [
-    (180, 119, 31), (14, 127, 255), (44, 160, 44), (40, 39, 214), (189, 103, 148),
-    (75, 86, 140), (194, 119, 227), (34, 189, 188), (207, 190, 23), (127, 127, 127),
-    (232, 199, 174), (120, 187, 255), (138, 223, 152), (150, 152, 255), (213, 176, 197),
+OUTLINE = (30, 30, 30)  # rover body outlines
+# Rover colours, cycled by index, as RGB: saturated or light hues from blue over purple
+# and red to yellow, never grey or green (the POI colours); tests/test_pictures.py checks it.
+PALETTE_RGB = [
+    (31, 119, 180), (255, 127, 14), (214, 39, 40), (120, 60, 200), (150, 95, 45),
+    (240, 110, 200), (23, 190, 207), (235, 190, 0), (30, 40, 140), (255, 150, 150),
+    (150, 200, 255), (190, 0, 190), (128, 0, 40), (255, 210, 140), (70, 20, 90),
 ]  # fmt: skip
+PALETTE = [c[::-1] for c in PALETTE_RGB]  # BGR, as OpenCV draws
+ROVER_PX = 6
+"""Smallest drawn rover radius, pixels (the body's true size when larger)."""
+
+INSET_ZOOM = 2.0
+"""Smallest zoom at which the clump inset is drawn (see ``_draw_clump_inset``)."""
+INSET_GAP = 8
+"""Pixels between the inset and the frame's top-right corner."""
+
+VIDEO_CODEC = "libx264"
+VIDEO_OPTIONS = {"crf": "21", "preset": "medium"}
+"""x264 quality and speed (CRF 21: clean drawings; about 0.5 Mbit/s, 70 kB a second, for a
+1284 x 640 side-by-side video)."""
 
 
 def rover_colour(index: int) -> tuple[int, int, int]:
@@ -39,7 +73,7 @@ def rover_colour(index: int) -> tuple[int, int, int]:
 
 def rover_rgb(index: int) -> tuple[int, int, int]:
     """RGB colour of rover ``index`` in the frames this module returns."""
-    return rover_colour(index)[::-1]
+    return PALETTE_RGB[index % len(PALETTE_RGB)]
 
 
 @dataclass(frozen=True)
@@ -49,25 +83,23 @@ class RenderConfig(ConfigBase):
     section: ClassVar[str] = "render"
 
     width: int = 640
-    """Frame width, pixels."""
+    """Frame width, pixels (even: H.264 yuv420p)."""
     height: int = 640
-    """Frame height, pixels."""
+    """Frame height, pixels (even: H.264 yuv420p)."""
     fps: int = 10
     """Video frames per second (one frame per environment step)."""
     trail: int = 12
     """Steps of trail drawn behind each rover."""
     margin: float = 2.0
-    """World units shown beyond the POI ring plus capture radius."""
+    """World units shown beyond the POIs' capture rings and the rovers' positions."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
-        for name in ("width", "height", "fps"):
+        for name in ("width", "height"):
             value = getattr(self, name)
-            check(
-                16 <= value <= 8192 if name != "fps" else 1 <= value <= 240,
-                name,
-                f"out of range, got {value}",
-            )
+            check(16 <= value <= 8192, name, f"out of range [16, 8192], got {value}")
+            check(value % 2 == 0, name, f"must be even (H.264 yuv420p video), got {value}")
+        check(1 <= self.fps <= 240, "fps", f"out of range [1, 240], got {self.fps}")
         check(self.trail >= 0, "trail", f"must be >= 0, got {self.trail}")
         check(self.margin >= 0, "margin", f"must be >= 0, got {self.margin}")
 
@@ -81,10 +113,56 @@ class Transform:
     cy: float
 
     @classmethod
-    def fit(cls, domain: DomainConfig, render: RenderConfig) -> Transform:
-        half = domain.poi_ring_radius + domain.d_cap + render.margin
-        scale = min(render.width, render.height) / (2.0 * half)
-        return cls(scale, render.width / 2.0, render.height / 2.0)
+    def fit(
+        cls,
+        domain: DomainConfig,
+        render: RenderConfig,
+        poi_positions: np.ndarray | None = None,
+        rover_positions: np.ndarray | None = None,
+    ) -> Transform:
+        """The view of a box holding every POI with its capture ring, every rover position
+        and ``render.margin`` world units around them, centred in the frame, with one scale
+        (pixels per world unit) for x and y, and ``ROVER_PX + 1`` pixels to spare at the edges.
+
+        Args:
+            poi_positions: (..., 2) world positions; default: the square around the domain's
+                POI ring (the view of the start state).
+            rover_positions: (..., 2) world positions, any leading shape (e.g. the
+                (T + 1, R, 2) positions of a whole episode); default: none.
+        """
+        if poi_positions is None:
+            half = domain.poi_ring_radius + domain.d_cap
+            lo, hi = np.full(2, -half), np.full(2, half)
+        else:
+            pois = np.asarray(poi_positions, dtype=np.float64).reshape(-1, 2)
+            lo, hi = pois.min(0) - domain.d_cap, pois.max(0) + domain.d_cap
+        if rover_positions is not None:
+            rovers = np.asarray(rover_positions, dtype=np.float64).reshape(-1, 2)
+            rovers = rovers[np.isfinite(rovers).all(1)]
+            if len(rovers):
+                lo, hi = np.minimum(lo, rovers.min(0)), np.maximum(hi, rovers.max(0))
+        lo, hi = lo - render.margin, hi + render.margin
+        pad = ROVER_PX + 1
+        scale = min((render.width - 2 * pad) / (hi[0] - lo[0]),
+                    (render.height - 2 * pad) / (hi[1] - lo[1]))  # fmt: skip
+        centre = (lo + hi) / 2.0
+        return cls(
+            float(scale),
+            render.width / 2.0 - scale * centre[0],
+            render.height / 2.0 + scale * centre[1],
+        )
+
+    @classmethod
+    def fit_states(
+        cls, states: list[FrameState], domain: DomainConfig, render: RenderConfig
+    ) -> Transform:
+        """One view holding the POIs and every rover position of all ``states``."""
+        return cls.fit(
+            domain,
+            render,
+            np.concatenate([s.poi_positions.reshape(-1, 2) for s in states]),
+            np.concatenate([s.positions.reshape(-1, 2) for s in states]),
+        )
 
     def __call__(self, xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, dtype=np.float64)
@@ -96,9 +174,10 @@ class FrameState:
     """What one frame shows (one team).
 
     Attributes:
-        positions: (t + 1, R, 2) rover positions from reset to now (the last row is now).
-        headings: (R,) current headings, radians.
-        poi_positions: (K, 2); poi_values: (K,).
+        positions: (t + 1, R, 2) rover world positions from reset to now (the last row is
+            now).
+        headings: (R,) current headings, radians counter-clockwise from the world x axis.
+        poi_positions: (K, 2) world positions; poi_values: (K,).
         capture_step: (K,) step at which each POI was first captured, -1 if not yet.
         step: current step t; G: score so far.
     """
@@ -112,40 +191,109 @@ class FrameState:
     G: float
 
 
+def rovers_in_range(
+    rover_positions: np.ndarray, poi_positions: np.ndarray, d_cap: float, d_min: float
+) -> np.ndarray:
+    """(K,) int: how many of the (R, 2) rovers are within ``d_cap`` of each of the (K, 2)
+    POIs, with the scoring's comparison (Eqs. 13-14: ``max(distance, d_min)^2 <= d_cap^2``;
+    float64, so a rover within ~1e-6 of the circle may differ from a float32 engine)."""
+    offsets = np.asarray(rover_positions, np.float64)[:, None] - np.asarray(poi_positions)
+    delta_sq = np.maximum(np.einsum("rkc,rkc->rk", offsets, offsets), d_min * d_min)
+    return in_range(delta_sq, d_cap).sum(axis=0)
+
+
 def _pt(p) -> tuple[int, int]:
     return int(round(float(p[0]))), int(round(float(p[1])))
 
 
-def draw_frame(state: FrameState, domain: DomainConfig, render: RenderConfig) -> np.ndarray:
-    """One (H, W, 3) uint8 RGB frame of ``state``."""
-    tf = Transform.fit(domain, render)
+def _text(img, text: str, org, scale: float, colour, thickness: int = 1, halo=False) -> None:
+    """Draw ``text`` at pixel ``org`` (bottom left); ``halo``: on a background-coloured rim,
+    legible over trails and bodies."""
+    font, aa = cv2.FONT_HERSHEY_SIMPLEX, cv2.LINE_AA
+    if halo:
+        cv2.putText(img, text, org, font, scale, BACKGROUND, thickness + 3, aa)
+    cv2.putText(img, text, org, font, scale, colour, thickness, aa)
+
+
+def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig) -> None:
+    """Draw (n, R, 2) world positions as trails ending in outlined bodies with heading ticks
+    (later indices on top); bodies at their true size, at least ``ROVER_PX`` pixels."""
+    aa = cv2.LINE_AA
+    radius_px = max(ROVER_PX, int(round(tf.scale * domain.rover_radius)))
+    trail = tf(positions)  # (n, R, 2) pixels
+    now = trail[-1]
+    if len(trail) > 1:
+        for i in range(now.shape[0]):
+            pts = np.round(trail[:, i]).astype(np.int32).reshape(-1, 1, 2)
+            cv2.polylines(img, [pts], False, rover_colour(i), 1, aa)
+    for i in range(now.shape[0]):
+        cv2.circle(img, _pt(now[i]), radius_px, rover_colour(i), -1, aa)
+        cv2.circle(img, _pt(now[i]), radius_px, OUTLINE, 1, aa)
+        # Heading tick from the body's edge outwards, so the body keeps its colour.
+        direction = np.array([np.cos(headings[i]), -np.sin(headings[i])])
+        cv2.line(img, _pt(now[i] + radius_px * direction),
+                 _pt(now[i] + 2.2 * radius_px * direction), TEXT, 2, aa)  # fmt: skip
+
+
+def _draw_clump_inset(img, now, headings, tf: Transform, domain: DomainConfig) -> None:
+    """While the team is a clump, zoom into it in an inset at the top right.
+
+    The inset (a quarter of the frame's shorter side, square) shows the bounding box of the
+    (R, 2) rovers ``now`` plus 0.5 world units, marked by a grey rectangle in the main view,
+    when that zooms in at least ``INSET_ZOOM`` times: the spawn disc at the first steps (x2.3
+    at the default sizes), and any later equally tight clump."""
+    now = now[np.isfinite(now).all(1)]
+    size = min(img.shape[:2]) // 4
+    if len(now) < 2:
+        return
+    lo, hi = now.min(0) - 0.5, now.max(0) + 0.5
+    scale = (size - 6 * ROVER_PX) / float(np.max(hi - lo))  # room for bodies and ticks
+    if scale < INSET_ZOOM * tf.scale:
+        return
+    cv2.rectangle(img, _pt(tf(lo)), _pt(tf(hi)), POI_FREE, 1)
+    centre = (lo + hi) / 2.0
+    zoom = Transform(scale, size / 2.0 - scale * centre[0], size / 2.0 + scale * centre[1])
+    canvas = np.empty((size, size, 3), dtype=np.uint8)
+    canvas[:] = BACKGROUND
+    _draw_rovers(canvas, zoom, now[None], headings, domain)
+    cv2.rectangle(canvas, (0, 0), (size - 1, size - 1), TEXT, 1)
+    _text(canvas, f"x{scale / tf.scale:.1f}", (5, size - 6), 0.4, TEXT)
+    x0 = img.shape[1] - size - INSET_GAP
+    img[INSET_GAP : INSET_GAP + size, x0 : x0 + size] = canvas
+
+
+def draw_frame(
+    state: FrameState,
+    domain: DomainConfig,
+    render: RenderConfig,
+    transform: Transform | None = None,
+) -> np.ndarray:
+    """One (H, W, 3) uint8 RGB frame of ``state``, in ``transform``'s view (default: the
+    POIs and the trajectory so far, :meth:`Transform.fit_states`)."""
+    tf = transform or Transform.fit_states([state], domain, render)
     img = np.empty((render.height, render.width, 3), dtype=np.uint8)
     img[:] = BACKGROUND
     aa = cv2.LINE_AA
-    # POIs: capture ring, then a disc sized by value.
-    vmax = float(np.max(state.poi_values))
-    for k, (pos, value) in enumerate(zip(state.poi_positions, state.poi_values, strict=True)):
+    counts = rovers_in_range(state.positions[-1], state.poi_positions, domain.d_cap, domain.d_min)
+    # POIs: capture ring and a disc sized by value; then the rovers: trails and bodies.
+    vmax, ring_px = float(np.max(state.poi_values)), max(1, int(tf.scale * domain.d_cap))
+    centres = [_pt(p) for p in tf(state.poi_positions)]
+    for k, value in enumerate(state.poi_values):
         captured = 0 <= state.capture_step[k] <= state.step
         colour = POI_CAPTURED if captured else POI_FREE
-        centre = _pt(tf(pos))
-        cv2.circle(img, centre, max(1, int(tf.scale * domain.d_cap)), colour, 1, aa)
-        cv2.circle(img, centre, int(4 + 8 * value / vmax), colour, -1, aa)
-        cv2.putText(img, f"{value:g}", (centre[0] + 12, centre[1] - 10),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.45, TEXT, 1, aa)  # fmt: skip
-    # Rovers: trail, body, heading tick.
-    radius_px = max(6, int(round(tf.scale * domain.rover_radius)))
-    trail = tf(state.positions[-(render.trail + 1) :])  # (n, R, 2)
-    now = trail[-1]
-    for i in range(now.shape[0]):
-        colour = rover_colour(i)
-        if len(trail) > 1:
-            pts = np.round(trail[:, i]).astype(np.int32).reshape(-1, 1, 2)
-            cv2.polylines(img, [pts], False, colour, 1, aa)
-        cv2.circle(img, _pt(now[i]), radius_px, colour, -1, aa)
-        # Heading tick from the body's edge outwards, so the body keeps its colour.
-        direction = np.array([np.cos(state.headings[i]), -np.sin(state.headings[i])])
-        cv2.line(img, _pt(now[i] + radius_px * direction),
-                 _pt(now[i] + 2.2 * radius_px * direction), TEXT, 2, aa)  # fmt: skip
+        cv2.circle(img, centres[k], ring_px, colour, 1, aa)
+        cv2.circle(img, centres[k], int(4 + 8 * value / vmax), colour, -1, aa)
+    _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain)
+    # POI labels on top of the rovers: the value and the rovers in range / n_req.
+    counts = rovers_in_range(state.positions[-1], state.poi_positions, domain.d_cap, domain.d_min)
+    for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
+        _text(img, f"{value:g}", (x + 12, y - 10), 0.45, TEXT, halo=True)
+        met = counts[k] >= domain.n_req
+        text, thickness = f"{counts[k]}/{domain.n_req}", 2 if met else 1
+        (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5, thickness)
+        colour = POI_CAPTURED if met else TEXT
+        _text(img, text, (x - w // 2, y + ring_px + h + 5), 0.5, colour, thickness, halo=True)
+    _draw_clump_inset(img, state.positions[-1], state.headings, tf, domain)
     # HUD.
     motion = domain.motion
     if motion == "physics":
@@ -155,23 +303,29 @@ def draw_frame(state: FrameState, domain: DomainConfig, render: RenderConfig) ->
         f"n_req {domain.n_req}   {motion}",
     ]
     for j, text in enumerate(lines):
-        cv2.putText(img, text, (10, 22 + 20 * j), cv2.FONT_HERSHEY_SIMPLEX, 0.55, TEXT, 1, aa)
+        _text(img, text, (10, 22 + 20 * j), 0.55, TEXT)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
-def world_frame(world, team: int, render: RenderConfig) -> np.ndarray:
-    """The frame of team ``team`` of a :class:`~physrover.domain.world.RoverWorld` now."""
+def world_state(world, team: int) -> FrameState:
+    """A copy of what team ``team`` of a :class:`~physrover.domain.world.RoverWorld` shows
+    now (the world reuses its arrays, so a kept state must not be a view)."""
     t = world.t
-    state = FrameState(
-        positions=world.position_history[: t + 1, team],
-        headings=world.rover_headings[team],
-        poi_positions=world.poi_positions[team],
-        poi_values=world.poi_values[team],
-        capture_step=world.scores.capture_step[team],
+    return FrameState(
+        positions=world.position_history[: t + 1, team].copy(),
+        headings=np.array(world.rover_headings[team]),
+        poi_positions=np.array(world.poi_positions[team]),
+        poi_values=np.array(world.poi_values[team]),
+        capture_step=np.array(world.scores.capture_step[team]),
         step=t,
         G=float(world.G[team]),
     )
-    return draw_frame(state, world.config, render)
+
+
+def world_frame(world, team: int, render: RenderConfig) -> np.ndarray:
+    """The frame of team ``team`` of a :class:`~physrover.domain.world.RoverWorld` now, in the
+    view of its POIs and its trajectory so far."""
+    return draw_frame(world_state(world, team), world.config, render)
 
 
 class VideoError(RuntimeError):
@@ -179,48 +333,103 @@ class VideoError(RuntimeError):
 
 
 class VideoWriter:
-    """MP4 (``mp4v``) writer that fails loudly instead of leaving an empty or short file.
+    """H.264 MP4 writer (PyAV, libx264, yuv420p) that fails loudly instead of leaving an
+    empty, short or undecodable file.
 
-    The PyPI OpenCV wheels cannot write H.264, hence ``mp4v``. Frames are RGB uint8 of the
-    configured size; anything else raises before it reaches OpenCV (which would silently
-    drop it). On close the file is read back and its frame count checked.
+    Frames are (height, width, 3) RGB uint8; width and height must be even (yuv420p halves
+    the chroma resolution). A frame of another shape or dtype raises before it reaches the
+    encoder; an encoding or write failure raises :class:`VideoError` naming the file. On
+    close the file is read back: it must hold an H.264 yuv420p stream with exactly the frames
+    written. Use as a context manager (an exception inside skips the check) or call
+    :meth:`close`. Quality: :data:`VIDEO_OPTIONS`; ``movflags=+faststart`` puts the index
+    first, so browsers start playing before the download ends.
     """
 
     def __init__(self, path: str | Path, width: int, height: int, fps: int):
         self.path = Path(path)
         self.size = (width, height)
+        self.frames = 0
+        self._container = self._stream = None
+        if width % 2 or height % 2 or width < 2 or height < 2:
+            raise VideoError(
+                f"cannot write {self.path}: H.264 yuv420p needs an even width and height, "
+                f"got {width}x{height}"
+            )
         if not self.path.parent.is_dir():
             raise VideoError(f"cannot write {self.path}: no directory {self.path.parent}")
-        self._writer = cv2.VideoWriter(
-            str(self.path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), self.size
-        )
-        if not self._writer.isOpened():
-            raise VideoError(f"cannot open {self.path} for writing (mp4v)")
-        self.frames = 0
+        try:
+            self.path.open("wb").close()  # PyAV opens the file only at the first packet
+            self._container = av.open(
+                str(self.path), "w", format="mp4", options={"movflags": "+faststart"}
+            )
+            self._stream = self._container.add_stream(VIDEO_CODEC, rate=Fraction(fps))
+            self._stream.width, self._stream.height = width, height
+            self._stream.pix_fmt = "yuv420p"
+            self._stream.options = dict(VIDEO_OPTIONS)
+        except (av.FFmpegError, OSError, ValueError) as exc:
+            self.close(check=False)
+            raise VideoError(f"cannot open {self.path} for writing (H.264): {exc}") from exc
 
     def write(self, frame: np.ndarray) -> None:
+        """Encode one (height, width, 3) uint8 RGB frame."""
+        if self._container is None:
+            raise VideoError(f"{self.path} is closed")
         expected = (self.size[1], self.size[0], 3)
         if frame.shape != expected or frame.dtype != np.uint8:
             self.close(check=False)
             raise VideoError(
                 f"frame must be uint8 of shape {expected}, got {frame.dtype} {frame.shape}"
             )
-        ok = self._writer.write(np.ascontiguousarray(frame[..., ::-1]))  # RGB -> BGR
-        if ok is False:  # OpenCV >= 5 reports failures; older versions return None
+        try:
+            video_frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")
+            video_frame.pts = self.frames  # in 1/fps units
+            self._mux(video_frame)
+        except (av.FFmpegError, OSError, ValueError) as exc:
             self.close(check=False)
-            raise VideoError(f"writing frame {self.frames} of {self.path} failed")
+            raise VideoError(f"writing frame {self.frames} of {self.path} failed: {exc}") from exc
         self.frames += 1
 
+    def _mux(self, frame) -> None:
+        """Encode ``frame`` (None: flush the encoder) and write the packets out."""
+        for packet in self._stream.encode(frame):
+            self._container.mux(packet)
+
     def close(self, check: bool = True) -> None:
-        if self._writer is None:
+        """Flush and close the file; with ``check``, read it back (see the class doc).
+
+        ``check=False`` (after a failure) closes quietly and leaves what was written."""
+        if self._container is None:
             return
-        self._writer.release()
-        self._writer = None
+        error = None
+        try:
+            if self._stream is not None:
+                self._mux(None)
+        except (av.FFmpegError, OSError, ValueError) as exc:
+            error = exc
+        container, self._container = self._container, None
+        try:
+            container.close()
+        except (av.FFmpegError, OSError, ValueError) as exc:
+            error = error or exc
         if not check:
             return
-        capture = cv2.VideoCapture(str(self.path))
-        count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
-        capture.release()
+        if error is not None:
+            raise VideoError(f"finishing {self.path} failed: {error}") from error
+        self._check()
+
+    def _check(self) -> None:
+        """Read the closed file back: codec, pixel format and frame count."""
+        if self.frames == 0:
+            raise VideoError(f"{self.path}: no frames were written")
+        try:
+            with av.open(str(self.path)) as container:
+                stream = container.streams.video[0]
+                codec, pix_fmt = stream.codec_context.name, stream.codec_context.pix_fmt
+                count = sum(1 for packet in container.demux(stream) if packet.size)
+        except (av.FFmpegError, OSError, IndexError) as exc:
+            raise VideoError(f"cannot read back {self.path}: {exc}") from exc
+        if (codec, pix_fmt) != ("h264", "yuv420p"):
+            raise VideoError(f"{self.path} holds {codec} {pix_fmt}, not h264 yuv420p")
         if count != self.frames:
             raise VideoError(f"{self.path} holds {count} frames, {self.frames} were written")
 
@@ -234,8 +443,7 @@ class VideoWriter:
 def label(frame: np.ndarray, text: str) -> np.ndarray:
     """A copy of an RGB frame with ``text`` in its bottom-left corner."""
     out = frame.copy()
-    cv2.putText(out, text, (10, out.shape[0] - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
-                TEXT[::-1], 1, cv2.LINE_AA)  # fmt: skip
+    _text(out, text, (10, out.shape[0] - 12), 0.6, TEXT[::-1])
     return out
 
 
@@ -249,5 +457,7 @@ __all__ = [
     "label",
     "rover_colour",
     "rover_rgb",
+    "rovers_in_range",
     "world_frame",
+    "world_state",
 ]

@@ -1,11 +1,33 @@
-"""Rendering and MP4 writing."""
+"""Rendering, H.264 MP4 writing and side-by-side playback."""
 
-import cv2
+import colorsys
+from pathlib import Path
+
+import av
 import numpy as np
 import pytest
 
 from physrover import RoverEnv
-from physrover.render import RenderConfig, Transform, VideoError, VideoWriter, rover_rgb
+from physrover.config import ConfigError, DomainConfig, LearnConfig, RunConfig
+from physrover.learn.policies import PolicyLayout
+from physrover.playback import DIVIDER_PX, record_run
+from physrover.render import (
+    PALETTE_RGB,
+    POI_CAPTURED,
+    POI_FREE,
+    RenderConfig,
+    Transform,
+    VideoError,
+    VideoWriter,
+    rover_rgb,
+    rovers_in_range,
+    world_state,
+)
+
+
+def _view(env, render):
+    """The transform ``env.render()`` draws its current frame with."""
+    return Transform.fit_states([world_state(env.unwrapped.world, 0)], env.config, render)
 
 
 def _record(path, render, steps=6):
@@ -22,25 +44,32 @@ def _record(path, render, steps=6):
     return env
 
 
-def test_video_round_trip(tmp_path):
+def _read(path):
+    """(stream facts, RGB frames) of a video, decoded with PyAV."""
+    with av.open(str(path)) as container:
+        stream = container.streams.video[0]
+        facts = {
+            "codec": stream.codec_context.name,
+            "pix_fmt": stream.codec_context.pix_fmt,
+            "size": (stream.width, stream.height),
+            "fps": float(stream.average_rate),
+        }
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(stream)]
+    return facts, frames
+
+
+def test_video_is_h264_and_round_trips(tmp_path):
     render = RenderConfig(width=320, height=240, fps=5, trail=0)
     path = tmp_path / "ep.mp4"
     env = _record(path, render)
-    cap = cv2.VideoCapture(str(path))
-    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 7  # steps + 1
-    assert (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (320, 240)
-    assert cap.get(cv2.CAP_PROP_FPS) == pytest.approx(5.0)
-    frames = []
-    while True:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        frames.append(frame[..., ::-1])  # BGR -> RGB
+    facts, frames = _read(path)
+    assert facts == {"codec": "h264", "pix_fmt": "yuv420p", "size": (320, 240), "fps": 5.0}
+    assert len(frames) == 7  # steps + 1
     last = frames[-1].astype(int)
-    tf = Transform.fit(env.config, render)
+    tf = _view(env, render)
     for i, pos in enumerate(env.unwrapped.world.rover_positions[0]):
         col, row = np.round(tf(pos)).astype(int)
-        # Rover 0 stands still at the origin, rover 1 at (6, 6) (mp4v is lossy: +-24 levels).
+        # Rover 0 stands still at the origin, rover 1 at (6, 6) (H.264 is lossy: +-24 levels).
         if i < 2:
             assert np.abs(last[row, col] - rover_rgb(i)).max() <= 24, i
     # A far corner away from POIs, rovers and the HUD is the background.
@@ -56,6 +85,14 @@ def test_wrong_frame_size_raises(tmp_path):
             video.write(np.zeros((240, 320, 3), dtype=np.float32))
 
 
+def test_odd_sizes_are_rejected(tmp_path):
+    with pytest.raises(VideoError, match="even width and height, got 63x64"):
+        VideoWriter(tmp_path / "odd.mp4", 63, 64, 10)
+    assert not (tmp_path / "odd.mp4").exists()
+    with pytest.raises(ConfigError, match="height: must be even"):
+        RenderConfig(height=321)
+
+
 def test_unwritable_path_raises(tmp_path):
     with pytest.raises(VideoError, match="no directory"):
         VideoWriter(tmp_path / "missing" / "x.mp4", 64, 64, 10)
@@ -64,12 +101,23 @@ def test_unwritable_path_raises(tmp_path):
         VideoWriter(tmp_path / "dir.mp4", 64, 64, 10)
 
 
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_a_write_failure_names_the_file():
+    # /dev/full accepts the open and fails every write with ENOSPC, like a full disk.
+    with pytest.raises(VideoError, match="/dev/full"):
+        with VideoWriter("/dev/full", 64, 64, 10) as video:
+            for _ in range(3):
+                video.write(np.zeros((64, 64, 3), dtype=np.uint8))
+
+
 def test_a_short_file_is_detected(tmp_path):
     video = VideoWriter(tmp_path / "z.mp4", 64, 64, 10)
     video.write(np.zeros((64, 64, 3), dtype=np.uint8))
     video.frames += 1  # pretend a frame went missing
     with pytest.raises(VideoError, match="holds 1 frames, 2 were written"):
         video.close()
+    with pytest.raises(VideoError, match="no frames"):
+        VideoWriter(tmp_path / "empty.mp4", 64, 64, 10).close()
 
 
 def test_check_env_with_rendering():
@@ -92,8 +140,89 @@ def test_poi_turns_green_when_captured():
     env.reset(seed=0, options={"rover_positions": [(13.0, 2.0), (13.0, -2.0)]})
     frame = env.render().astype(int)
     assert frame.shape == (200, 200, 3)
-    tf = Transform.fit(env.config, render)
+    tf = _view(env, render)
     col, row = np.round(tf([15.0, 0.0])).astype(int)  # POI 1 (captured)
     assert np.abs(frame[row, col] - (60, 170, 60)).max() <= 2
-    col, row = np.round(tf([0.0, 15.0])).astype(int)  # POI 2 (not captured)
+    col, row = np.round(tf([-15.0, 0.0])).astype(int)  # POI 3 (not captured)
     assert np.abs(frame[row, col] - (150, 150, 150)).max() <= 2
+
+
+def test_palette_is_far_from_poi_colours():
+    assert len(set(PALETTE_RGB)) == 15
+    pois = [POI_FREE[::-1], POI_CAPTURED[::-1]]  # RGB
+    for colour in PALETTE_RGB:
+        for poi in pois:
+            assert np.linalg.norm(np.subtract(colour, poi)) > 100, (colour, poi)
+        hue, saturation, _ = colorsys.rgb_to_hsv(*(c / 255 for c in colour))
+        assert saturation >= 0.4, colour  # not grey
+        assert not 70 <= 360 * hue <= 170, colour  # not green (yellow ends at ~60 deg)
+
+
+def test_view_keeps_a_far_rover_in_frame():
+    render = RenderConfig(width=200, height=160)
+    env = RoverEnv(n_rovers=2, n_req=1, steps=40, render_mode="rgb_array", render_config=render)
+    # Rover 1 starts far beyond the ring (15 + d_cap 4) and drives outwards 1 unit a step.
+    env.reset(seed=0, options={"rover_positions": [(0.0, 0.0), (30.0, 0.0)],
+                               "rover_headings": [0.0, 0.0]})  # fmt: skip
+    for t in range(41):
+        frame = env.render().astype(int)
+        tf = _view(env, render)
+        history = env.unwrapped.world.position_history[: t + 1, 0]  # (t + 1, R, 2)
+        pixels = tf(history)  # the whole trajectory so far is in view, not just now
+        assert (pixels >= 0).all() and (pixels[..., 0] < 200).all() and (pixels[..., 1] < 160).all()
+        col, row = np.round(pixels[-1, 1]).astype(int)
+        assert np.abs(frame[row, col] - rover_rgb(1)).max() <= 2, t
+        # The view is one scale for x and y, and keeps the POIs with their capture rings.
+        lo, hi = tf([-19.0, -19.0]), tf([19.0, 19.0])
+        assert lo.min() >= 0 and hi[0] < 200 and lo[1] < 160
+        if t < 40:
+            env.step(np.array([[0.0, 0.0], [1.0, 0.0]]))
+    assert env.unwrapped.world.rover_positions[0, 1, 0] == pytest.approx(70.0)
+
+
+def test_clump_inset_only_while_clumped():
+    render = RenderConfig()  # 640 x 640: the inset is 160 px square at the top right
+    env = RoverEnv(render_mode="rgb_array", render_config=render)
+    env.reset(seed=0)  # 15 rovers in the spawn disc
+    top = (8, slice(640 - 168, 640 - 8))  # the inset's top border
+    assert (env.render()[top] == 40).all()
+    spread = [(15.0 * np.cos(a), 15.0 * np.sin(a)) for a in np.linspace(0, 6, 15)]
+    env.reset(seed=0, options={"rover_positions": spread})
+    assert (env.render()[top] == 246).all()
+
+
+def test_rovers_in_range_counts():
+    # POI 1 at (15, 0), POI 2 at (0, 15), POIs 3, 4 at (-15, 0), (0, -15); d_cap 4, d_min 1.
+    env = RoverEnv(n_rovers=5, n_req=2, render_mode="rgb_array")
+    positions = [
+        (15.0, 0.0),  # on POI 1 (distance 0, bounded to d_min)
+        (19.0, 0.0),  # exactly d_cap from POI 1: in range (<=, Eq. 13)
+        (15.0, 4.01),  # just outside POI 1
+        (0.5, 12.0),  # inside POI 2
+        (-5.0, -5.0),  # near nothing
+    ]
+    env.reset(seed=0, options={"rover_positions": positions, "rover_headings": [0.0] * 5})
+    world, config = env.unwrapped.world, env.config
+    counts = rovers_in_range(world.rover_positions[0], world.poi_positions[0],
+                             config.d_cap, config.d_min)  # fmt: skip
+    assert counts.tolist() == [2, 1, 0, 0]
+    # The same convention as the scoring: POI 1 (2 >= n_req) is captured at reset, no other.
+    assert world.scores.capture_step[0].tolist() == [0, -1, -1, -1]
+
+
+def test_record_run_side_by_side(tmp_path):
+    config = RunConfig(DomainConfig(n_rovers=3, steps=4), LearnConfig(hidden=4))
+    (tmp_path / "config.toml").write_text(config.to_toml())
+    (tmp_path / "champions").mkdir()
+    genomes = PolicyLayout(4).init((3,), np.random.default_rng(0))
+    np.save(tmp_path / "champions" / "gen_000007.npy", genomes)
+    render = RenderConfig(width=160, height=120)
+    out, scores = record_run(tmp_path, tmp_path / "sbs.mp4", episodes=2, side_by_side=True,
+                             render=render)  # fmt: skip
+    assert len(scores) == 4  # (ideal, physics) per episode
+    facts, frames = _read(out)
+    assert facts["codec"] == "h264" and facts["pix_fmt"] == "yuv420p"
+    assert facts["size"] == (2 * 160 + DIVIDER_PX, 120)
+    assert len(frames) == 2 * 5
+    divider = frames[0][:, 160 : 160 + DIVIDER_PX].astype(int)
+    assert divider.max() <= 80  # a dark bar between the panels
