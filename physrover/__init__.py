@@ -10,6 +10,7 @@ import gymnasium
 
 from physrover.config import ConfigError, DomainConfig
 from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
+from physrover.learn import fitness as _fitness  # noqa: F401  (registers the fitness methods)
 
 __version__ = "0.1.0"
 __all__ = ["ConfigError", "DomainConfig", "ENV_ID", "RoverEnv", "RoverVectorEnv", "__version__"]

@@ -12,20 +12,20 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from physrover.config import (
-    METHODS,
-    ConfigError,
-    RunConfig,
-    parse_override,
-)
+from physrover.config import ConfigError, RunConfig, parse_override
 from physrover.engine import ENGINES, ENV_VAR, EngineError, resolve
+from physrover.registry import FITNESS_METHODS
 from physrover.render import VideoError
-from physrover.runs import RunError, find_runs
+from physrover.runs import RunError, find_runs, last_checkpoint, load_run_config
 from physrover.threads import pin_threads
 
 
 class UsageError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
+
+
+class Interrupted(Exception):
+    """Ctrl-C, with what was saved and how to continue: printed as one line, status 130."""
 
 
 def _run_config(args: argparse.Namespace) -> RunConfig:
@@ -65,6 +65,27 @@ def cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_methods(args: argparse.Namespace) -> int:
+    width = max(len(name) for name in FITNESS_METHODS)
+    sections = max(len(spec.section) for _, spec in FITNESS_METHODS.items())
+    print(f"{'method':{width}}  {'paper':{sections}}  fitness of a policy")
+    for name, spec in FITNESS_METHODS.items():
+        print(f"{name:{width}}  {spec.section:{sections}}  {spec.summary}")
+    print('\nchoose with: physrover train --method NAME  (or [learn] method = "NAME")')
+    return 0
+
+
+def _interrupted(out: Path) -> str:
+    """What a Ctrl-C left in run directory ``out`` and how to continue."""
+    saved = last_checkpoint(out)
+    what = (
+        f"saved: the checkpoint after generation {saved}"
+        if saved is not None
+        else "nothing saved yet (the first checkpoint comes after checkpoint_every generations)"
+    )
+    return f"interrupted; {what}. Continue with: physrover train --resume {out}"
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from physrover.runs import train
 
@@ -75,16 +96,30 @@ def cmd_train(args: argparse.Namespace) -> int:
             raise UsageError(
                 "--resume continues a run with its own config; only --generations applies"
             )
-        out = train(
-            None, args.resume, resume=True, generations=args.generations, progress=not args.quiet
-        )
+        out = Path(args.resume)
+        target = args.generations or load_run_config(out).learn.generations
+        done = last_checkpoint(out)
+        if done is not None and done >= target:
+            print(
+                f"{out} is already at {done} generations; to extend it: "
+                f"physrover train --resume {out} --generations {done + 1000}"
+            )
+            return 0
     else:
         config = _run_config(args)
         cfg = config.learn
-        out = args.out or (
-            f"runs/{cfg.method}_{config.domain.motion}_nreq{config.domain.n_req}_seed{cfg.seed}"
+        out = Path(
+            args.out
+            or f"runs/{cfg.method}_{config.domain.motion}_nreq{config.domain.n_req}_seed{cfg.seed}"
         )
-        out = train(config, out, progress=not args.quiet)
+    try:
+        if args.resume:
+            train(None, out, resume=True, generations=args.generations,
+                  progress=not args.quiet, tensorboard=args.tensorboard)  # fmt: skip
+        else:
+            train(config, out, progress=not args.quiet, tensorboard=args.tensorboard)
+    except KeyboardInterrupt:
+        raise Interrupted(_interrupted(out)) from None
     print(f"run directory: {out}")
     return 0
 
@@ -107,7 +142,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
             f"train: {d.n_rovers} rovers, {d.n_pois} POIs, k={cfg.population}, "
             f"{d.steps} steps, motion={d.motion}, median of {args.repeats} generations"
         )
-        methods = args.methods.split(",") if args.methods else list(METHODS)
+        methods = args.methods.split(",") if args.methods else list(FITNESS_METHODS)
         for line in bench.bench_train(config, methods, generations=args.repeats):
             print(line)
         return 0
@@ -140,14 +175,15 @@ def cmd_curves(args: argparse.Namespace) -> int:
     run_dirs = find_runs(args.run_dirs)
     if not run_dirs:
         raise UsageError("no run directories (with config.toml) found")
-    runs = plots.load_runs(run_dirs, by=tuple(args.by or ()))
+    by, title = tuple(args.by or ()), args.title or None
     if args.final:
-        table = plots.final_table(runs, args.final, last=args.last)
-        out = plots.plot_final(table, Path(args.out or "final.png"), args.final, args.title)
+        result = plots.make_final(run_dirs, args.final, args.out, by=by, last=args.last,
+                                  title=title)  # fmt: skip
     else:
-        table = plots.curve_table(runs, smooth=args.smooth)
-        out = plots.plot_curves(table, Path(args.out or "curves.png"), args.title)
-    print(f"plot: {out}\nnumbers: {out.with_suffix('.csv')}")
+        result = plots.make_curves(run_dirs, args.out, by=by, smooth=args.smooth, title=title)
+    for message in result.messages:
+        print(message, file=sys.stderr)
+    print(f"plot: {result.png}\nnumbers: {result.csv}")
     return 0
 
 
@@ -166,15 +202,24 @@ def cmd_demo(args: argparse.Namespace) -> int:
         {"method": "max-critic", "generations": args.generations, "checkpoint_every": 500}
     )
     print(f"demo: max-critic on the paper's domain, {args.generations} generations -> {out}")
-    train(config, out, progress=True)
-    table = plots.curve_table(plots.load_runs([out]), smooth=20)
-    curve = plots.plot_curves(
-        table, out / "learning_curve.png", "max-critic, 15 rovers, 4 POIs, n_req = 3 (seed 0)"
-    )
+    try:
+        train(config, out, progress=True)
+    except KeyboardInterrupt:
+        raise Interrupted(_interrupted(out)) from None
+    curve = plots.make_curves([out], out / "learning_curve.png", smooth=20).png
     video, scores = record_run(out, out / "side_by_side.mp4", episodes=2, side_by_side=True)
     print(f"learning curve: {curve}")
-    print(f"video: {video}  (G per episode, ideal/physics: {', '.join(f'{g:g}' for g in scores)})")
+    print(f"video: {video}  (the trained team, same start states under both models)")
+    print(_episode_table(scores, config.domain.poi_values))
     return 0
+
+
+def _episode_table(scores: list[float], poi_values) -> str:
+    """The side-by-side video's G per episode: ``scores`` alternate ideal, physics."""
+    lines = [f"episode  G ideal  G physics   (max G {sum(poi_values):g})"]
+    for episode, (ideal, physics) in enumerate(zip(scores[::2], scores[1::2], strict=True)):
+        lines.append(f"{episode + 1:7d}  {ideal:7g}  {physics:9g}")
+    return "\n".join(lines)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -187,7 +232,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             print(spec.out)
         return 0
     print(f"sweep {sweep.name}: {len(specs)} runs under {Path(args.root) / sweep.name}")
-    report = run_sweep(specs, workers=args.workers, ray_address=args.ray)
+    try:
+        report = run_sweep(specs, workers=args.workers, ray_address=args.ray)
+    except KeyboardInterrupt:
+        again = " ".join(["physrover", *sys.argv[1:]]) if sys.argv[1:] else "the same command"
+        raise Interrupted(
+            "sweep interrupted; finished runs are kept and the others resume from their last "
+            f"checkpoint when you run it again: {again}"
+        ) from None
     print(
         f"sweep {sweep.name}: {len(report.finished)} run, {report.skipped} already done, "
         f"{len(report.failed)} failed, {report.seconds:.0f} s"
@@ -201,8 +253,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="physrover",
         description="Multi-rover testbed: the tightly coupled rover domain and fitness critics.",
+        epilog="Start with `physrover demo`; `physrover COMMAND --help` describes a command.",
     )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
 
     p = sub.add_parser("info", help="print the resolved run config ([domain], [learn]) as TOML")
     _add_config_args(p)
@@ -210,7 +263,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train a team with the CCEA and a fitness method")
     _add_config_args(p)
-    p.add_argument("--method", help="fitness method, e.g. max-critic, mean-critic, D, average")
+    p.add_argument(
+        "--method", help="fitness method, e.g. max-critic, D, average (list: physrover methods)"
+    )
     p.add_argument("--n-req", dest="n_req", type=int, help="coupling n_req")
     p.add_argument("--motion", choices=["ideal", "physics"], help="motion model")
     p.add_argument("--generations", type=int, help="generations (with --resume: run up to)")
@@ -219,7 +274,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", metavar="DIR", help="continue the run in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
+    p.add_argument(
+        "--tensorboard",
+        action="store_true",
+        help="also log metrics as TensorBoard events in DIR/tensorboard "
+        "(pip install 'physrover[tensorboard]')",
+    )
     p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("methods", help="list the fitness methods (name, paper section, summary)")
+    p.set_defaults(func=cmd_methods)
 
     p = sub.add_parser("render", help="record a run's champion team to MP4")
     p.add_argument("run_dir", help="a run directory")
@@ -232,14 +296,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fps", type=int, default=10, help="frames per second")
     p.set_defaults(func=cmd_render)
 
-    p = sub.add_parser("curves", help="learning curves (or final scores) with 95% CI")
+    p = sub.add_parser("curves", help="learning curves (or final scores) with 95%% CI")
     p.add_argument("run_dirs", nargs="+", help="run directories, or directories holding them")
-    p.add_argument("--out", help="output PNG (default curves.png / final.png); CSV beside it")
+    p.add_argument(
+        "--out",
+        help="output PNG (default: curves.png / final_FIELD.png beside the runs); CSV beside it",
+    )
     p.add_argument("--by", action="append", metavar="FIELD", help="also group by this field")
     p.add_argument("--final", metavar="FIELD", help="plot the final score against FIELD")
     p.add_argument("--last", type=int, default=1, help="--final: average the last N gens")
     p.add_argument("--smooth", type=int, default=1, help="moving average over N generations")
-    p.add_argument("--title", default="", help="plot title")
+    p.add_argument("--title", default=None, help="plot title (default: what all runs share)")
     p.set_defaults(func=cmd_curves)
 
     p = sub.add_parser("demo", help="short max-critic training, then a curve and a video")
@@ -282,11 +349,17 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.command is None:  # bare `physrover`: show the commands, not just "required"
+        parser.print_help(sys.stderr)
+        return 2
     try:
         return args.func(args)
     except (ConfigError, EngineError, UsageError, RunError, VideoError) as exc:
         print(f"physrover: error: {exc}", file=sys.stderr)
         return 2
+    except Interrupted as exc:
+        print(f"physrover: {exc}", file=sys.stderr)
+        return 130
     except KeyboardInterrupt:
         print("physrover: interrupted", file=sys.stderr)
         return 130

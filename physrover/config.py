@@ -10,6 +10,7 @@ message names the field and the allowed range. Unknown names are errors, never i
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import sys
@@ -17,6 +18,8 @@ import typing
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
+
+from physrover.registry import FITNESS_METHODS, did_you_mean
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -30,8 +33,19 @@ class ConfigError(ValueError):
     """A configuration value is invalid; the message names the field."""
 
     def __init__(self, field: str, message: str):
-        self.field = field
+        self.field, self.message = field, message
         super().__init__(f"{field}: {message}")
+
+
+@contextlib.contextmanager
+def naming_file(path: str | Path):
+    """Prefix the message of a :class:`ConfigError` raised inside with the file's path."""
+    try:
+        yield
+    except ConfigError as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        raise ConfigError(f"{path}: {exc.field}", exc.message) from None
 
 
 # ----------------------------------------------------------------------------------------------
@@ -98,7 +112,8 @@ class ConfigBase:
         unknown = sorted(set(values) - set(cls.field_names()))
         if unknown:
             allowed = ", ".join(cls.field_names())
-            raise ConfigError(unknown[0], f"unknown {cls.__name__} field (known: {allowed})")
+            hint = did_you_mean(unknown[0], cls.field_names())
+            raise ConfigError(unknown[0], f"unknown {cls.__name__} field{hint} (known: {allowed})")
         return cls(**values)
 
     def to_dict(self) -> dict[str, Any]:
@@ -109,7 +124,8 @@ class ConfigBase:
         merged = self.to_dict()
         unknown = sorted(set(changes) - set(merged))
         if unknown:
-            raise ConfigError(unknown[0], f"unknown {type(self).__name__} field")
+            hint = did_you_mean(unknown[0], merged)
+            raise ConfigError(unknown[0], f"unknown {type(self).__name__} field{hint}")
         merged.update(changes)
         return type(self)(**merged)
 
@@ -133,7 +149,8 @@ def check(ok: bool, field: str, message: str) -> None:
 
 def check_choice(value: str, choices: tuple[str, ...], field: str) -> None:
     """Raise :class:`ConfigError` unless ``value`` is one of ``choices``."""
-    check(value in choices, field, f"must be one of {', '.join(choices)}; got {value!r}")
+    hint = did_you_mean(value, choices) if isinstance(value, str) else ""
+    check(value in choices, field, f"must be one of {', '.join(choices)}; got {value!r}{hint}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -247,20 +264,23 @@ class DomainConfig(ConfigBase):
 # ----------------------------------------------------------------------------------------------
 
 
-def loads_toml(text: str) -> dict[str, Any]:
+def loads_toml(text: str, source: str = "<string>") -> dict[str, Any]:
+    """Parse TOML; a syntax error names ``source`` (a file's path) and the line and column
+    the parser gives."""
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("toml", f"cannot parse TOML: {exc}") from None
+        raise ConfigError(source, f"cannot parse TOML: {exc}") from None
 
 
 def load_toml_file(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file; errors name the file."""
     path = Path(path)
     try:
         text = path.read_text()
     except OSError as exc:
-        raise ConfigError("config", f"cannot read {path}: {exc.strerror}") from None
-    return loads_toml(text)
+        raise ConfigError(str(path), f"cannot read: {exc.strerror}") from None
+    return loads_toml(text, str(path))
 
 
 def _toml_value(value: Any) -> str:
@@ -308,17 +328,6 @@ def parse_override(text: str) -> tuple[str, Any]:
 # Learning and runs
 # ----------------------------------------------------------------------------------------------
 
-METHODS = (
-    "D",
-    "G",
-    "average",
-    "leniency",
-    "hall-of-fame",
-    "mean-critic",
-    "max-critic",
-    "max-critic-regular",
-    "mean-critic-inexact",
-)
 FEEDBACKS = ("D", "G")
 OPTIMIZERS = ("sgd", "adam")
 
@@ -382,7 +391,9 @@ class LearnConfig(ConfigBase):
 
     def __post_init__(self) -> None:
         self._coerce_fields()
-        check_choice(self.method, METHODS, "method")
+        check(
+            self.method in FITNESS_METHODS, "method", FITNESS_METHODS.unknown_message(self.method)
+        )
         check_choice(self.feedback, FEEDBACKS, "feedback")
         check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
         check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
@@ -450,7 +461,10 @@ class RunConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> RunConfig:
-        return cls.from_dict(load_toml_file(path))
+        """The config in a TOML file; every error names the file."""
+        data = load_toml_file(path)
+        with naming_file(path):
+            return cls.from_dict(data)
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> RunConfig:
         """Apply ``{field: value}`` by bare field name; each name lives in exactly one table."""
@@ -461,5 +475,17 @@ class RunConfig:
             elif name in LearnConfig.field_names():
                 learn[name] = value
             else:
-                raise ConfigError(name, "unknown config field (not in [domain] or [learn])")
+                known = DomainConfig.field_names() + LearnConfig.field_names()
+                raise ConfigError(
+                    name,
+                    f"unknown config field{did_you_mean(name, known)} (not in [domain] or "
+                    "[learn]; `physrover info` lists every field)",
+                )
         return RunConfig(self.domain.replace(**domain), self.learn.replace(**learn))
+
+
+def __getattr__(name: str):
+    # ``METHODS`` was a tuple here before the registry; kept readable for existing code.
+    if name == "METHODS":
+        return FITNESS_METHODS.names()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,58 +1,72 @@
-"""A one-line progress display for long loops (stderr; quiet when not a terminal)."""
+"""Progress of long loops on stderr, drawn by tqdm.
+
+On a terminal: one live tqdm bar (done/total, the given fields, rate, time left). Not on a
+terminal (a log file, a CI job, a sweep worker): a line every 10% and at the end, in the same
+tqdm format, instead of a bar redrawn with carriage returns.
+
+``warm_up(text)`` shows a status while something that should not count towards the rate runs
+(compiling the kernels on a first run): the rate and the time left count only what follows.
+"""
 
 from __future__ import annotations
 
 import sys
 import time
 
-
-def _clock(seconds: float) -> str:
-    seconds = int(max(seconds, 0))
-    hours, rest = divmod(seconds, 3600)
-    return f"{hours}:{rest // 60:02d}:{rest % 60:02d}" if hours else f"{rest // 60}:{rest % 60:02d}"
+from tqdm import tqdm
 
 
 class Progress:
-    """``Progress(total, label)``; call ``update(done, **fields)`` and ``close()``.
+    """``Progress(total, label, start=done_already, unit="gen")``; ``update(done, **fields)``;
+    ``close()``."""
 
-    Redraws at most ``hz`` times a second; shows done/total, a bar, the given fields, the rate
-    and the time left. When stderr is not a terminal, prints a line every 10% instead.
-    """
-
-    def __init__(self, total: int, label: str = "", start: int = 0, hz: float = 4.0, stream=None):
-        self.total, self.label, self.start = total, label, start
+    def __init__(self, total: int, label: str = "", start: int = 0, stream=None, unit="it"):
+        self.total, self.label, self.unit = total, label, unit
         self.stream = stream or sys.stderr
         self.tty = getattr(self.stream, "isatty", lambda: False)()
-        self.t0 = time.perf_counter()
-        self.last_draw, self.last_decile = 0.0, -1
-        self.min_interval = 1.0 / hz
+        self.bar = None
+        self.restart_clock(start)
+
+    def _new_bar(self, done: int, desc: str) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        self.bar = tqdm(total=self.total, initial=done, desc=desc, file=self.stream,
+                        unit=self.unit, dynamic_ncols=True, smoothing=0.1, leave=True)  # fmt: skip
+
+    def warm_up(self, text: str) -> None:
+        """Show ``text`` until the next ``restart_clock``; that time is left out of the rate."""
+        if self.tty:
+            self._new_bar(self.start, f"{self.label} ({text})")
+        else:
+            self.stream.write(f"{self.label}: {text}\n")
+            self.stream.flush()
+
+    def restart_clock(self, done: int) -> None:
+        """Measure the rate and time left from now, with ``done`` steps already behind."""
+        self.start, self.t0 = done, time.perf_counter()
+        self.last_decile = int(10 * done / max(self.total, 1))
+        if self.tty:
+            self._new_bar(done, self.label)
 
     def update(self, done: int, **fields: float | str) -> None:
-        now = time.perf_counter()
+        postfix = {k: (f"{v:.2f}" if isinstance(v, float) else str(v)) for k, v in fields.items()}
+        if self.bar is not None:
+            self.bar.set_postfix(postfix, refresh=False)
+            self.bar.update(done - self.bar.n)
+            return
         decile = int(10 * done / max(self.total, 1))
-        final = done >= self.total
-        if self.tty and not final and now - self.last_draw < self.min_interval:
+        if decile == self.last_decile and done < self.total:
             return
-        if not self.tty and not final and decile == self.last_decile:
-            return
-        self.last_draw, self.last_decile = now, decile
-        rate = (done - self.start) / max(now - self.t0, 1e-9)
-        eta = (self.total - done) / rate if rate > 0 else float("inf")
-        width = 24
-        filled = int(width * done / max(self.total, 1))
-        bar = "#" * filled + "-" * (width - filled)
-        extra = " ".join(
-            f"{k} {v:.2f}" if isinstance(v, float) else f"{k} {v}" for k, v in fields.items()
-        )
-        eta_text = _clock(eta) if eta != float("inf") else "?"
-        line = f"{self.label} {done}/{self.total} [{bar}] {extra} | {rate:.1f}/s | ETA {eta_text}"
-        if self.tty:
-            self.stream.write("\r" + line[:160].ljust(120))
-        else:
-            self.stream.write(line + "\n")
+        self.last_decile = decile
+        elapsed = time.perf_counter() - self.t0
+        rate = (done - self.start) / elapsed if elapsed > 0 and done > self.start else None
+        line = tqdm.format_meter(
+            done, self.total, elapsed, prefix=self.label, unit=self.unit, rate=rate,
+            postfix=", ".join(f"{k}={v}" for k, v in postfix.items()), initial=self.start,
+        )  # fmt: skip
+        self.stream.write(line + "\n")
         self.stream.flush()
 
     def close(self) -> None:
-        if self.tty:
-            self.stream.write("\n")
-            self.stream.flush()
+        if self.bar is not None:
+            self.bar.close()

@@ -42,12 +42,23 @@ class RunError(Exception):
     """A problem with a run directory, reported to the user in one line."""
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Write via a temporary file in the same directory, fsync, then rename over ``path``."""
+    """Write via a temporary file in the same directory, fsync, then rename over ``path``.
+
+    The file gets the permissions of a file opened the usual way (0666 less the umask), not
+    mkstemp's private 0600, so colleagues read every file of a run alike.
+    """
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     tmp_path = Path(tmp)
     try:
+        os.chmod(tmp_path, 0o666 & ~_umask())
         write(tmp_path)
         with open(tmp_path, "rb+") as f:
             os.fsync(f.fileno())
@@ -90,8 +101,25 @@ def load_state(run_dir: Path, ccea: CCEA) -> None:
 
 
 def read_metrics(path: Path) -> list[dict[str, float]]:
+    """The rows of a metrics.csv, generations counted from 1.
+
+    physrover 0.1.0 counted the rows' generations from 0; such files (first row 0) are read
+    shifted by one, so old and new runs plot on one axis.
+    """
     with open(path, newline="") as f:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+        rows = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    if rows and rows[0]["generation"] == 0:
+        for row in rows:
+            row["generation"] += 1
+    return rows
+
+
+def last_checkpoint(run_dir: Path) -> int | None:
+    """Generations completed at the run's latest checkpoint, or None if it has none."""
+    try:
+        return int(json.loads((Path(run_dir) / STATE_JSON).read_text())["generation"])
+    except (OSError, ValueError, KeyError):
+        return None
 
 
 def _write_metrics(path: Path, rows: list[dict]) -> None:
@@ -140,6 +168,18 @@ def load_run_config(run_dir: Path) -> RunConfig:
     return RunConfig.load(run_dir / CONFIG)
 
 
+def _kernels_cached() -> bool:
+    """Whether numba has cached compiled kernels on disk (else the first generation compiles).
+
+    numba writes its cache index (``*.nbi``) beside the source in ``__pycache__``, or under
+    ``NUMBA_CACHE_DIR`` when that is set.
+    """
+    root = os.environ.get("NUMBA_CACHE_DIR")
+    places = [Path(root)] if root else [Path(__file__).parent / d / "__pycache__"
+                                        for d in ("domain", "learn")]  # fmt: skip
+    return any(next(p.rglob("*kernels*.nbi"), None) for p in places if p.is_dir())
+
+
 def train(
     config: RunConfig | None,
     out: str | Path,
@@ -147,12 +187,15 @@ def train(
     resume: bool = False,
     generations: int | None = None,
     progress: bool = True,
+    tensorboard: bool = False,
     on_generation: Callable[[GenerationStats], None] | None = None,
 ) -> Path:
     """Train (or continue) a run in ``out`` up to ``generations`` (default: the config's).
 
     With ``resume``, ``config`` is ignored and read from ``out``; the run continues from its
-    last checkpoint (dropping metrics rows written after it) up to ``generations``.
+    last checkpoint (dropping metrics rows written after it) up to ``generations``. With
+    ``tensorboard``, every metrics row is also written as TensorBoard scalars under
+    ``out/tensorboard`` (needs ``pip install 'physrover[tensorboard]'``).
     """
     out = Path(out)
     if resume:
@@ -166,18 +209,19 @@ def train(
         if generations is not None:
             config = config.with_overrides({"generations": generations})
         prepare_run_dir(out, config)
+    log = TensorBoardLog(out) if tensorboard else None
     ccea = CCEA(config)
     rows: list[dict] = []
     if resume and (out / STATE_JSON).exists():
         load_state(out, ccea)
-        rows = [r for r in read_metrics(out / METRICS) if r["generation"] < ccea.generation]
+        rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= ccea.generation]
         _write_metrics(out / METRICS, rows)
     elif resume:
         _write_metrics(out / METRICS, [])  # started but never checkpointed: start over
 
     total = config.learn.generations
     bar = (
-        Progress(total, label=f"{config.learn.method} gen", start=ccea.generation)
+        Progress(total, f"{config.learn.method} gen", ccea.generation, unit="gen")
         if progress
         else None
     )
@@ -185,6 +229,10 @@ def train(
     with open(out / METRICS, "a", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=stats_header())
         while ccea.generation < total:
+            first = bar is not None and ccea.generation == bar.start
+            if first:  # compiles (or loads) the kernels: not counted in the rate
+                bar.warm_up("compiling kernels, first run only" if not _kernels_cached()
+                            else "loading compiled kernels")  # fmt: skip
             stats = ccea.run_generation()
             writer.writerow({k: _fmt(v) for k, v in asdict(stats).items()})
             best = stats.eval_G if math.isnan(best) else max(best, stats.eval_G)
@@ -192,12 +240,44 @@ def train(
             if done % config.learn.checkpoint_every == 0 or done == total:
                 f.flush()
                 save_state(out, ccea)
+            if log:
+                log.write(stats)
             if on_generation:
                 on_generation(stats)
             if bar:
+                if first:
+                    bar.restart_clock(done)
                 bar.update(done, **{"eval G": stats.eval_G, "best G": best})
     if bar:
         bar.close()
+    if log:
+        log.close()
     if not (out / STATE_JSON).exists():
         save_state(out, ccea)
     return out
+
+
+class TensorBoardLog:
+    """The metrics.csv scalars as TensorBoard events (``out/tensorboard``), step = generation.
+
+    metrics.csv stays the record; this is for viewing (``tensorboard --logdir runs``). A
+    resumed run appends to the same directory; TensorBoard shows the latest value of a step.
+    """
+
+    def __init__(self, out: Path):
+        try:
+            from torch.utils.tensorboard import SummaryWriter
+        except ImportError:
+            raise RunError(
+                "--tensorboard needs the tensorboard package: pip install 'physrover[tensorboard]'"
+            ) from None
+        self.writer = SummaryWriter(log_dir=str(out / "tensorboard"))
+
+    def write(self, stats: GenerationStats) -> None:
+        row = asdict(stats)
+        step = row.pop("generation")
+        for name, value in row.items():
+            self.writer.add_scalar(name, value, global_step=step)
+
+    def close(self) -> None:
+        self.writer.close()

@@ -35,13 +35,12 @@ import shutil
 import sys
 import time
 import traceback
-from collections.abc import Mapping
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from physrover.config import ConfigError, RunConfig, load_toml_file
+from physrover.config import ConfigError, RunConfig, load_toml_file, naming_file
 from physrover.progress import Progress
 from physrover.threads import pin_threads
 
@@ -63,7 +62,13 @@ class Sweep:
 
     @classmethod
     def load(cls, path: str | Path) -> Sweep:
+        """The sweep in a TOML file; every error names the file."""
         data = load_toml_file(path)
+        with naming_file(path):
+            return cls._from_dict(data, path)
+
+    @classmethod
+    def _from_dict(cls, data: dict, path: str | Path) -> Sweep:
         unknown = sorted(set(data) - {"sweep", "base", "grid", "variants"})
         if unknown:
             raise ConfigError(
@@ -174,7 +179,7 @@ def run_sweep(
     start = time.perf_counter()
     todo = [s for s in specs if run_status(s) != "done"]
     skipped = len(specs) - len(todo)
-    bar = Progress(len(specs), label="sweep runs", start=skipped) if progress else None
+    bar = Progress(len(specs), label="sweep runs", start=skipped, unit="run") if progress else None
     finished: list[str] = []
     failed: dict[str, str] = {}
 
@@ -211,9 +216,7 @@ def _run_ray(todo, address, record, bar, skipped, workers) -> None:
         raise ConfigError("--ray", "ray is not installed: pip install 'physrover[ray]'") from None
     started_here = not ray.is_initialized()
     if started_here:
-        kwargs: Mapping[str, Any] = {"num_cpus": workers} if address == "local" else {}
-        ray.init(address=None if address == "local" else address, include_dashboard=False,
-                 log_to_driver=False, **kwargs)  # fmt: skip
+        _connect_ray(ray, address, workers)
     try:
         task = ray.remote(num_cpus=1)(run_one)
         pending = [task.remote(spec) for spec in todo]
@@ -225,3 +228,71 @@ def _run_ray(todo, address, record, bar, skipped, workers) -> None:
     finally:
         if started_here:
             ray.shutdown()
+
+
+RAY_HELP = (
+    "start a cluster with `ray start --head` (it prints the address to pass) "
+    "or run here with --ray local"
+)
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Fail at once, naming ``address``, when nothing listens there (Ray itself retries for
+    minutes). ``address``: ``host:port`` or ``ray://host:port``; others are left to Ray."""
+    import socket
+    from urllib.parse import urlsplit
+
+    target = urlsplit(address if "://" in address else f"tcp://{address}")
+    try:
+        host, port = target.hostname, target.port
+    except ValueError:
+        raise ConfigError("--ray", f"bad address {address!r} (expected HOST:PORT)") from None
+    if not host or port is None:
+        return
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise ConfigError(
+            "--ray", f"no Ray cluster answers at {address} ({reason}); {RAY_HELP}"
+        ) from None
+
+
+def _connect_ray(ray, address: str, workers: int, timeout: int = 30) -> None:
+    """``ray.init`` for ``address`` ("local" starts Ray here), failing within about
+    ``timeout`` seconds with one line instead of hanging or a traceback.
+
+    Ray must be initialised in the main thread, so the time limit is an alarm signal (on
+    platforms that have one, when called from the main thread).
+    """
+    import signal
+    import threading
+
+    if address != "local":
+        _check_reachable(address)
+    kwargs: dict[str, Any] = {"num_cpus": workers} if address == "local" else {}
+    alarm = (
+        address != "local"
+        and hasattr(signal, "SIGALRM")
+        and threading.current_thread() is threading.main_thread()
+    )
+
+    def give_up(signum, frame):
+        raise TimeoutError(f"no answer in {timeout} s")
+
+    previous = signal.signal(signal.SIGALRM, give_up) if alarm else None
+    if alarm:
+        signal.alarm(timeout)
+    try:
+        ray.init(address=None if address == "local" else address, include_dashboard=False,
+                 log_to_driver=False, logging_level="ERROR", **kwargs)  # fmt: skip
+    except Exception as error:  # Ray raises many kinds; the user needs one line
+        lines = str(error).strip().splitlines()
+        reason = lines[0] if lines else type(error).__name__
+        raise ConfigError(
+            "--ray", f"cannot connect to Ray at {address}: {reason}; {RAY_HELP}"
+        ) from None
+    finally:
+        if alarm:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, previous)

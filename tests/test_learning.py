@@ -114,7 +114,7 @@ def test_resume_after_a_crash_drops_rows_past_the_checkpoint(tmp_path):
         pass
 
     def crash_at_5(stats):
-        if stats.generation == 4:  # rows 0-4 written, last checkpoint after generation 2
+        if stats.generation == 5:  # rows 1-5 written, last checkpoint after generation 3
             raise Crash
 
     with pytest.raises(Crash):
@@ -145,8 +145,8 @@ def test_set_resolves_names_across_tables():
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["train", "--method", "magic"], "method: must be one of"),
-        (["train", "--config", "missing.toml"], "cannot read missing.toml"),
+        (["train", "--method", "magic"], "method: unknown fitness method 'magic'"),
+        (["train", "--config", "missing.toml"], "missing.toml: cannot read"),
         (["train", "--set", "n_req=99"], "n_req: must be in [1, n_rovers=15]"),
         (["train", "--set", "colour=red"], "colour: unknown config field"),
         (["train", "--resume", "nowhere"], "nowhere is not a run directory"),

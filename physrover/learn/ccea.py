@@ -12,11 +12,14 @@ One generation, everything batched over teams and rovers (R rovers, k policies e
 4. **Evolution**: binary tournament with Cauchy mutation (:mod:`physrover.learn.evolution`).
 5. **Critic update** (critic methods only), after evolution as in Algorithm 1.
 
-The learning curve is ``eval_G``: the mean G of the champion team on fresh episodes. The
-champion evaluated in generation g was chosen by the fitness of generation g - 1 (in
-generation 0: policy 0 of each population, i.e. an untrained team); it survived the
-tournament unchanged, so evaluating it alongside generation g's training episodes costs no
-extra rollout.
+Generations are counted from 1 everywhere (metrics.csv, progress, checkpoints, flags):
+generation g is the g-th one run, and ``CCEA.generation`` is the number completed. The
+learning curve is ``eval_G``: the mean G of the champion team on fresh episodes. The champion
+evaluated in generation g was chosen by the fitness of generation g - 1 (in generation 1:
+policy 0 of each population, i.e. an untrained team); it survived the tournament unchanged,
+so evaluating it alongside generation g's training episodes costs no extra rollout. The
+checkpoint after generation g (``champions/gen_g.npy``) holds the champion chosen by
+generation g's fitness: the team that generation g + 1 would evaluate.
 
 Random streams, all derived from ``seed``: policy initialisation, team permutations,
 evolution, critic initialisation, critic mini-batches, and the env's per-team start states.
@@ -43,11 +46,20 @@ class GenerationStats:
     """One row of metrics.csv."""
 
     generation: int
+    """The generation's number, counted from 1."""
     eval_G: float
+    """Mean G of the champion team (chosen by the previous generation) on ``eval_episodes``
+    fresh episodes: the learning curve."""
     train_G_mean: float
+    """Mean G over this generation's training episodes (the population's teams)."""
     fitness_mean: float
+    """Mean fitness the method assigned (D, a critic's value, ...; its scale is the
+    method's own)."""
     critic_loss: float
+    """The critic's mean squared error in this generation's updates (NaN without a critic)."""
     wall_seconds: float
+    """Seconds spent in generations since the run started, summed across resumes; includes
+    compiling the kernels on a first run, excludes writing checkpoints."""
 
 
 class CCEA:
@@ -163,7 +175,7 @@ class CCEA:
             self.timings[name] += seconds
         self.wall_seconds += end - start
         stats = GenerationStats(
-            generation=self.generation,
+            generation=self.generation + 1,
             eval_G=float(G[self.n_train :].mean()),
             train_G_mean=float(G[: self.n_train].mean()),
             fitness_mean=float(np.nanmean(fitness)),

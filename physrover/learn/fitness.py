@@ -14,14 +14,22 @@ generation's episodes, Algorithm 1's inner loop) and ``update`` (end of generati
   teammates (paper Section 2.3, "optimizing the best team"): R x k episodes a generation;
 - critics: the fitness critic's aggregate over the trajectory (Eqs. 3-4), with the feedback
   stored in the replay buffer and the critic updated after evolution (Algorithm 1).
+
+Every method is registered by name in :data:`physrover.registry.FITNESS_METHODS` (with a
+one-line summary and the paper section, listed by ``physrover methods``); a new method is a
+:class:`FitnessMethod` subclass plus one :func:`register_method` call.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
 from physrover.config import LearnConfig
 from physrover.learn.critics import CriticSettings, FitnessCritic
+from physrover.registry import FITNESS_METHODS
 
 
 class FitnessMethod:
@@ -132,16 +140,28 @@ CRITICS = {
 }
 
 
-def make_method(
-    cfg: LearnConfig, n_rovers: int, steps: int, rng: np.random.Generator
-) -> FitnessMethod:
-    """The fitness method named by ``cfg.method``; ``rng`` initialises critics."""
-    if cfg.method in ("D", "G"):
-        return SingleEpisode(use_G=cfg.method == "G")
-    if cfg.method == "hall-of-fame":
-        return HallOfFame(n_rovers)
-    if cfg.method in ("average", "leniency"):
-        return Sampled(cfg.n_samples, "mean" if cfg.method == "average" else "max")
+@dataclass(frozen=True)
+class MethodSpec:
+    """A registered fitness method: how to build it, and what to tell a user about it.
+
+    ``build(cfg, n_rovers, steps, rng)`` returns a :class:`FitnessMethod`; ``rng`` is the
+    run's critic generator (initial critic weights), the only draw a method makes at
+    construction.
+    """
+
+    build: Callable[[LearnConfig, int, int, np.random.Generator], FitnessMethod]
+    summary: str
+    """One line: what the fitness of a policy is."""
+    section: str
+    """Where the paper describes it."""
+
+
+def register_method(name: str, build, summary: str, section: str) -> MethodSpec:
+    """Add a fitness method under ``name`` (usable in TOML, ``--method`` and ``--set``)."""
+    return FITNESS_METHODS.register(name, MethodSpec(build, summary, section))
+
+
+def _critic(cfg: LearnConfig, n_rovers: int, steps: int, rng: np.random.Generator):
     aggregation, update = CRITICS[cfg.method]
     regular = update == "regular"
     settings = CriticSettings(
@@ -156,3 +176,66 @@ def make_method(
         batches=cfg.trajectory_batches if regular else cfg.pair_batches,
     )
     return CriticFitness(FitnessCritic(n_rovers, steps, settings, rng))
+
+
+register_method(
+    "D",
+    lambda cfg, n, steps, rng: SingleEpisode(use_G=False),
+    "the policy's difference evaluation D (Eq. 1) in one episode",
+    "Sec. 2.2 (Eq. 1)",
+)
+register_method(
+    "G",
+    lambda cfg, n, steps, rng: SingleEpisode(use_G=True),
+    "the team's score G of the policy's one episode",
+    "Sec. 4.1 (Eq. 11)",
+)
+register_method(
+    "average",
+    lambda cfg, n, steps, rng: Sampled(cfg.n_samples, "mean"),
+    "mean feedback over n_samples episodes with fresh teammates",
+    "Sec. 2.3, 4",
+)
+register_method(
+    "leniency",
+    lambda cfg, n, steps, rng: Sampled(cfg.n_samples, "max"),
+    "max feedback over n_samples episodes with fresh teammates",
+    "Sec. 2.3",
+)
+register_method(
+    "hall-of-fame",
+    lambda cfg, n, steps, rng: HallOfFame(n),
+    "feedback with the best team found so far as teammates",
+    "Sec. 2.3",
+)
+register_method(
+    "mean-critic",
+    _critic,
+    "fitness critic, mean over the trajectory, regular updates",
+    "Sec. 3.1-3.2 (Eqs. 4, 6-8)",
+)
+register_method(
+    "max-critic",
+    _critic,
+    "fitness critic, max over the trajectory, inexact updates (the paper's best)",
+    "Sec. 3.1, 3.3 (Eqs. 3, 6, 9-10)",
+)
+register_method(
+    "max-critic-regular",
+    _critic,
+    "fitness critic, max over the trajectory, regular updates",
+    "Sec. 3.1-3.2 (Eqs. 3, 6-8)",
+)
+register_method(
+    "mean-critic-inexact",
+    _critic,
+    "fitness critic, mean over the trajectory, inexact updates",
+    "Sec. 3.1, 3.3 (Eqs. 4, 6, 9-10)",
+)
+
+
+def make_method(
+    cfg: LearnConfig, n_rovers: int, steps: int, rng: np.random.Generator
+) -> FitnessMethod:
+    """The fitness method named by ``cfg.method``; ``rng`` initialises critics."""
+    return FITNESS_METHODS[cfg.method].build(cfg, n_rovers, steps, rng)

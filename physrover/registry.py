@@ -1,0 +1,83 @@
+"""Named registries: the one list of the fitness methods (and, later, scenarios, sensors, ...)
+that config validation, the CLI, plots and docs all read.
+
+A registry maps a name (as written in TOML and on the command line) to an entry; a
+researcher's own entry is one ``register`` call, from any module, without editing the package.
+This module sits at the bottom of the package (it imports nothing of physrover), so the
+config layer can validate names against it; the learners fill it when they are imported
+(``physrover/__init__.py`` imports them, so the built-in names are always there).
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Iterator
+from typing import Generic, TypeVar
+
+T = TypeVar("T")
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'a' or 'b'?)`` for the known names closest to ``name``, or ``""``."""
+    known = list(known)
+    close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
+    if not close:  # a case slip (``d`` for ``D``) or a missing separator (``nreq``)
+        squash = {k.lower().replace("_", "").replace("-", ""): k for k in known}
+        close = [squash[k] for k in difflib.get_close_matches(
+            name.lower().replace("_", "").replace("-", ""), list(squash), n=3, cutoff=0.6
+        )]  # fmt: skip
+    if not close:
+        return ""
+    return " (did you mean " + " or ".join(repr(c) for c in close) + "?)"
+
+
+class Registry(Generic[T]):
+    """An ordered ``name -> entry`` map with helpful errors.
+
+    ``register(name, entry)`` adds (a second entry under one name is an error unless
+    ``replace=True``); ``registry[name]`` looks up, raising :class:`KeyError` whose message
+    lists the known names and suggests the nearest.
+    """
+
+    def __init__(self, kind: str):
+        self.kind = kind
+        self._entries: dict[str, T] = {}
+
+    def register(self, name: str, entry: T, *, replace: bool = False) -> T:
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"a {self.kind} name must be a non-empty string, got {name!r}")
+        if name in self._entries and not replace:
+            raise ValueError(f"{self.kind} {name!r} is already registered")
+        self._entries[name] = entry
+        return entry
+
+    def unknown_message(self, name: str) -> str:
+        return (
+            f"unknown {self.kind} {name!r}{did_you_mean(name, self._entries)}; "
+            f"known: {', '.join(self._entries)}"
+        )
+
+    def __getitem__(self, name: str) -> T:
+        try:
+            return self._entries[name]
+        except KeyError:
+            raise KeyError(self.unknown_message(name)) from None
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._entries
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._entries)
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def names(self) -> tuple[str, ...]:
+        return tuple(self._entries)
+
+    def items(self):
+        return self._entries.items()
+
+
+#: Fitness methods of the CCEA: name -> :class:`physrover.learn.fitness.MethodSpec`.
+FITNESS_METHODS: Registry = Registry("fitness method")

@@ -1,0 +1,211 @@
+"""The command line a new user meets: help, errors, messages, and the run files it writes."""
+
+import argparse
+import io
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from physrover import cli
+from physrover.cli import build_parser, main
+from physrover.config import ConfigError, RunConfig
+from physrover.learn.fitness import SingleEpisode, register_method
+from physrover.progress import Progress
+from physrover.registry import FITNESS_METHODS, did_you_mean
+from physrover.runs import read_metrics, train
+
+TINY = ["--set", "n_rovers=3", "--set", "n_req=1", "--set", "population=4",
+        "--set", "steps=5", "--set", "eval_episodes=2", "--method", "D"]  # fmt: skip
+
+
+def _subcommands(parser):
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices
+
+
+def test_help_of_every_parser_lists_its_options(capsys):
+    parser = build_parser()
+    commands = _subcommands(parser)
+    assert {"info", "train", "methods", "render", "curves", "demo", "sweep", "bench"} <= set(
+        commands
+    )
+    with pytest.raises(SystemExit) as exit_:
+        main(["--help"])
+    assert exit_.value.code == 0
+    top = capsys.readouterr().out
+    assert all(name in top for name in commands)
+    for name, sub in commands.items():
+        with pytest.raises(SystemExit) as exit_:
+            main([name, "--help"])
+        assert exit_.value.code == 0
+        text = capsys.readouterr().out
+        options = [o for a in sub._actions for o in a.option_strings if o.startswith("--")]
+        assert options and all(o in text for o in options), name
+
+
+def test_bare_command_lists_the_commands(capsys):
+    assert main([]) == 2
+    err = capsys.readouterr().err
+    assert "commands:" in err and "train" in err and "methods" in err
+
+
+def test_methods_lists_every_registered_method(capsys):
+    name = "test-only-G"
+    register_method(name, lambda cfg, n, steps, rng: SingleEpisode(True), "G again", "none")
+    try:
+        assert main(["methods"]) == 0
+        out = capsys.readouterr().out
+        for method, spec in FITNESS_METHODS.items():
+            line = next(line for line in out.splitlines() if line.split()[:1] == [method])
+            assert spec.summary in line and spec.section in line
+        assert RunConfig().with_overrides({"method": name}).learn.method == name
+    finally:
+        del FITNESS_METHODS._entries[name]
+
+
+def test_unknown_names_suggest_the_nearest(capsys):
+    assert main(["info", "--set", "nreq=5"]) == 2
+    assert "did you mean 'n_req'?" in capsys.readouterr().err
+    assert main(["train", "--method", "max_critic"]) == 2
+    assert "did you mean 'max-critic'" in capsys.readouterr().err
+    assert did_you_mean("zzz", ["n_req", "d_cap"]) == ""
+    with pytest.raises(ConfigError, match="did you mean 'physics'"):
+        RunConfig().with_overrides({"motion": "phys"})
+
+
+def test_config_errors_name_the_file_and_line(tmp_path, capsys):
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[domain]\nn_req = 3\nn_rovers = \n")
+    assert main(["info", "--config", str(broken)]) == 2
+    err = capsys.readouterr().err
+    assert str(broken) in err and "line 3" in err
+    invalid = tmp_path / "invalid.toml"
+    invalid.write_text("[domain]\nn_req = 0\n")
+    assert main(["info", "--config", str(invalid)]) == 2
+    assert f"{invalid}: n_req: must be in" in capsys.readouterr().err
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text("[sweep]\nname = 'x'\n[grid]\nnreq = [1, 2]\n")
+    assert main(["sweep", str(sweep), "--dry-run"]) == 2
+    assert str(sweep) in capsys.readouterr().err
+
+
+def test_generation_numbers_agree_across_files(tmp_path):
+    out = tmp_path / "run"
+    stream = io.StringIO()
+    config = RunConfig().with_overrides(
+        {"n_rovers": 3, "n_req": 1, "population": 4, "steps": 5, "checkpoint_every": 2}
+    )
+    real = Progress.__init__
+
+    def to_stream(self, *args, **kwargs):
+        real(self, *args, **{**kwargs, "stream": stream})
+
+    Progress.__init__ = to_stream
+    try:
+        train(config, out, generations=5, progress=True)
+    finally:
+        Progress.__init__ = real
+    rows = read_metrics(out / "metrics.csv")
+    assert [r["generation"] for r in rows] == [1, 2, 3, 4, 5]
+    raw = (out / "metrics.csv").read_text().splitlines()
+    assert raw[1].startswith("1,") and raw[-1].startswith("5,")
+    champions = sorted(p.name for p in (out / "champions").iterdir())
+    assert champions == ["gen_000002.npy", "gen_000004.npy", "gen_000005.npy"]
+    assert "5/5" in stream.getvalue().splitlines()[-1]
+
+
+def test_old_zero_based_metrics_are_read_from_one(tmp_path):
+    path = tmp_path / "metrics.csv"
+    path.write_text(
+        "generation,eval_G,train_G_mean,fitness_mean,critic_loss,wall_seconds\n"
+        "0,1,0,0,nan,0.1\n1,2,0,0,nan,0.2\n"
+    )
+    assert [r["generation"] for r in read_metrics(path)] == [1, 2]
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o002])
+def test_run_files_follow_the_umask(tmp_path, umask):
+    old = os.umask(umask)
+    try:
+        config = RunConfig().with_overrides({"n_rovers": 3, "n_req": 1, "population": 4})
+        out = train(config, tmp_path / "run", generations=1, progress=False)
+    finally:
+        os.umask(old)
+    files = [p for p in out.rglob("*") if p.is_file()]
+    names = {p.name for p in files}
+    assert {"config.toml", "metrics.csv", "state.npz", "state.json", "gen_000001.npy"} <= names
+    for path in files:
+        assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask, path.name
+
+
+def test_unreachable_ray_address_fails_with_one_line(tmp_path, capsys):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(
+        "[sweep]\nname = 'x'\n[base.domain]\nn_rovers = 3\nn_req = 1\n"
+        "[base.learn]\ngenerations = 1\npopulation = 4\n[grid]\nmethod = ['D']\n"
+    )
+    argv = ["sweep", str(sweep), "--root", str(tmp_path), "--ray", "127.0.0.1:1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "no Ray cluster answers at 127.0.0.1:1" in err and "ray start --head" in err
+    assert main([*argv[:-1], "127.0.0.1:port"]) == 2
+    assert "bad address" in capsys.readouterr().err
+
+
+def test_resume_of_a_finished_run_says_how_to_extend(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", *TINY, "--generations", "2", "--out", str(out), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["train", "--resume", str(out), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert f"{out} is already at 2 generations" in said
+    assert f"physrover train --resume {out} --generations" in said
+
+
+def test_ctrl_c_says_what_was_saved_and_how_to_resume(tmp_path, capsys, monkeypatch):
+    from physrover.learn.ccea import CCEA
+
+    real = CCEA.run_generation
+
+    def interrupt_after_3(self):
+        if self.generation == 3:
+            raise KeyboardInterrupt
+        return real(self)
+
+    monkeypatch.setattr(CCEA, "run_generation", interrupt_after_3)
+    out = tmp_path / "run"
+    argv = ["train", *TINY, "--set", "checkpoint_every=2", "--out", str(out), "--quiet"]
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert "the checkpoint after generation 2" in err
+    assert f"physrover train --resume {out}" in err
+    fresh = tmp_path / "fresh"
+    argv = ["train", *TINY, "--set", "checkpoint_every=5", "--out", str(fresh), "--quiet"]
+    assert main(argv) == 130
+    assert "nothing saved yet" in capsys.readouterr().err
+
+
+def test_tensorboard_events_hold_the_metrics(tmp_path):
+    pytest.importorskip("tensorboard")
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    out = tmp_path / "run"
+    assert main(["train", *TINY, "--generations", "3", "--out", str(out), "--quiet",
+                 "--tensorboard"]) == 0  # fmt: skip
+    events = EventAccumulator(str(out / "tensorboard"))
+    events.Reload()
+    rows = read_metrics(out / "metrics.csv")
+    for column in ("eval_G", "train_G_mean", "fitness_mean", "wall_seconds"):
+        scalars = events.Scalars(column)
+        assert [s.step for s in scalars] == [1, 2, 3]
+        np.testing.assert_allclose([s.value for s in scalars], [r[column] for r in rows], rtol=1e-6)
+
+
+def test_demo_prints_a_table_of_both_models():
+    table = cli._episode_table([7.0, 9.0, 6.0, 9.0], (1.0, 2.0, 3.0, 4.0))
+    lines = table.splitlines()
+    assert lines[0].split()[:5] == ["episode", "G", "ideal", "G", "physics"]
+    assert lines[1].split() == ["1", "7", "9"] and lines[2].split() == ["2", "6", "9"]
