@@ -14,7 +14,6 @@ every position of every rover of the episode, common to both panels so they comp
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
@@ -31,30 +30,7 @@ from physrover.render import (
     label,
     world_state,
 )
-from physrover.runs import CHAMPIONS, RunError, load_run_config
-
-
-def champion_checkpoints(run_dir: Path) -> dict[int, Path]:
-    """{generation: path} of the champion snapshots of a run."""
-    found = {}
-    for path in (run_dir / CHAMPIONS).glob("gen_*.npy"):
-        match = re.fullmatch(r"gen_(\d+)\.npy", path.name)
-        if match:
-            found[int(match.group(1))] = path
-    return found
-
-
-def load_champions(run_dir: Path, checkpoint: int | None = None) -> tuple[int, np.ndarray]:
-    """(generation, (R, P) genomes) of the champion team at ``checkpoint`` (default: last)."""
-    found = champion_checkpoints(run_dir)
-    if not found:
-        raise RunError(f"{run_dir} has no champion checkpoints yet")
-    if checkpoint is None:
-        checkpoint = max(found)
-    if checkpoint not in found:
-        raise RunError(f"no checkpoint {checkpoint} in {run_dir}; have {sorted(found)}")
-    return checkpoint, np.load(found[checkpoint])
-
+from physrover.runs import load_champions, load_run_config
 
 DIVIDER_PX = 4
 """Width of the bar between side-by-side panels, pixels (even, so the video width stays even)."""
