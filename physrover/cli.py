@@ -60,6 +60,18 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_motion_args(p: argparse.ArgumentParser, default: str) -> None:
+    p.add_argument(
+        "--motion", choices=["ideal", "physics"], help=f"motion model (default: {default})"
+    )
+    p.add_argument(
+        "--collisions",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help=f"rover-rover collisions under physics (default: {default})",
+    )
+
+
 def cmd_info(args: argparse.Namespace) -> int:
     print(_run_config(args).to_toml(), end="")
     return 0
@@ -169,6 +181,24 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from physrover.evaluate import EVAL_SEED, evaluate_run
+
+    pin_threads(1)
+    result = evaluate_run(
+        args.run_dir,
+        episodes=args.episodes,
+        seed=EVAL_SEED if args.seed is None else args.seed,
+        checkpoint=args.checkpoint,
+        motion=args.motion,
+        collisions=args.collisions,
+    )
+    print(result.line())
+    if args.out:
+        print(f"per-episode G: {result.write_csv(args.out)}")
+    return 0
+
+
 def cmd_curves(args: argparse.Namespace) -> int:
     from physrover import plots
 
@@ -226,7 +256,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from physrover.sweep import Sweep, run_sweep
 
     sweep = Sweep.load(args.sweep_file)
-    specs = sweep.runs(args.root, seeds=args.seeds)
+    specs = sweep.runs(args.root, seeds=args.seeds, drop_state=args.drop_state)
     if args.dry_run:
         for spec in specs:
             print(spec.out)
@@ -292,9 +322,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the first episode")
     p.add_argument("--out", help="output .mp4 (default: inside the run directory)")
     p.add_argument("--side-by-side", action="store_true", help="ideal and physics side by side")
-    p.add_argument("--size", type=int, default=640, help="frame width and height, pixels")
+    p.add_argument("--size", type=int, default=640, help="frame width and height, pixels (even)")
     p.add_argument("--fps", type=int, default=10, help="frames per second")
     p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser(
+        "evaluate", help="play a run's champion team on fresh episodes, under any motion model"
+    )
+    p.add_argument("run_dir", help="a run directory")
+    _add_motion_args(p, "the run's")
+    p.add_argument("--episodes", type=int, default=100, help="episodes (default 100)")
+    p.add_argument("--checkpoint", type=int, help="generation of the champion (default: last)")
+    p.add_argument("--seed", type=int, help="seed of the first episode (default 1000000)")
+    p.add_argument("--out", metavar="FILE.csv", help="also write each episode's G as CSV")
+    p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("curves", help="learning curves (or final scores) with 95%% CI")
     p.add_argument("run_dirs", nargs="+", help="run directories, or directories holding them")
@@ -321,18 +362,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ray", metavar="ADDRESS", help="run on Ray ('local' starts one here)")
     p.add_argument("--root", default="runs/sweeps", help="where sweeps go (default runs/sweeps)")
     p.add_argument("--dry-run", action="store_true", help="list the run directories only")
+    p.add_argument(
+        "--drop-state",
+        action="store_true",
+        help="delete each run's state.npz (~18 MB) when it finishes; it can then not be extended",
+    )
     p.set_defaults(func=cmd_sweep)
 
     p = sub.add_parser("bench", help="time the world or the learner (benchmarks, not tests)")
     p.add_argument("what", choices=["world", "train"], help="what to time")
     p.add_argument("--methods", help="comma-separated methods for 'train' (default: all)")
-    p.add_argument("--motion", choices=["ideal", "physics"], help="motion model")
-    p.add_argument(
-        "--collisions",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="rover-rover collisions under physics (config default: on)",
-    )
+    _add_motion_args(p, "the config's")
     p.add_argument("--teams", type=int, default=50, help="teams stepped together (default 50)")
     p.add_argument("--repeats", type=int, default=20, help="timed runs/generations (default 20)")
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")

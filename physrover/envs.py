@@ -84,8 +84,9 @@ class RoverEnv(gymnasium.Env):
     the last step, ``"D"`` (R,): each rover's difference evaluation (Eq. 1).
 
     ## Rendering
-    ``render_mode="rgb_array"``: ``render()`` returns an OpenCV-drawn RGB frame
-    (:mod:`physrover.render`; size from ``render_config``, a ``RenderConfig``).
+    ``render_mode="rgb_array"``: ``render()`` returns an OpenCV-drawn (H, W, 3) uint8 RGB
+    frame (:mod:`physrover.render`; size from ``render_config``, a ``RenderConfig``) whose
+    view fits the POIs and every position the team has visited so far.
 
     ## Arguments
     ``RoverEnv(config=None, render_mode=None, render_config=None, **fields)``: any

@@ -18,6 +18,7 @@ import csv
 import json
 import math
 import os
+import re
 import tempfile
 from collections.abc import Callable
 from dataclasses import asdict
@@ -26,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from physrover.config import ConfigError, RunConfig
+from physrover.engine import resolve
 from physrover.learn.ccea import CCEA, GenerationStats, stats_header
 from physrover.progress import Progress
 
@@ -89,8 +91,24 @@ def save_state(run_dir: Path, ccea: CCEA) -> None:
     _atomic_write(champions / f"gen_{ccea.generation:06d}.npy", write_champions)
 
 
+def drop_state(run_dir: Path) -> int:
+    """Delete a finished run's ``state.npz`` (populations, critics, replay buffers: ~18 MB at
+    paper scale); returns the bytes freed. config, metrics, champions and ``state.json`` stay,
+    so curves, render, evaluate and a sweep's "done" check still work; the run can no
+    longer be resumed or extended."""
+    path = Path(run_dir) / STATE_NPZ
+    size = path.stat().st_size if path.exists() else 0
+    path.unlink(missing_ok=True)
+    return size
+
+
 def load_state(run_dir: Path, ccea: CCEA) -> None:
     meta = json.loads((run_dir / STATE_JSON).read_text())
+    if not (run_dir / STATE_NPZ).exists():
+        raise RunError(
+            f"{run_dir}: {STATE_NPZ} was dropped after generation {meta['generation']}; the "
+            "run cannot be continued (its curves, champions and videos remain)"
+        )
     with np.load(run_dir / STATE_NPZ) as data:
         arrays = {k: data[k] for k in data.files}
     if int(arrays.pop("generation")) != meta["generation"]:
@@ -168,6 +186,28 @@ def load_run_config(run_dir: Path) -> RunConfig:
     return RunConfig.load(run_dir / CONFIG)
 
 
+def champion_checkpoints(run_dir: Path) -> dict[int, Path]:
+    """{generation: path} of the champion snapshots of a run."""
+    found = {}
+    for path in (run_dir / CHAMPIONS).glob("gen_*.npy"):
+        match = re.fullmatch(r"gen_(\d+)\.npy", path.name)
+        if match:
+            found[int(match.group(1))] = path
+    return found
+
+
+def load_champions(run_dir: Path, checkpoint: int | None = None) -> tuple[int, np.ndarray]:
+    """(generation, (R, P) genomes) of the champion team at ``checkpoint`` (default: last)."""
+    found = champion_checkpoints(run_dir)
+    if not found:
+        raise RunError(f"{run_dir} has no champion checkpoints yet")
+    if checkpoint is None:
+        checkpoint = max(found)
+    if checkpoint not in found:
+        raise RunError(f"no checkpoint {checkpoint} in {run_dir}; have {sorted(found)}")
+    return checkpoint, np.load(found[checkpoint])
+
+
 def _kernels_cached() -> bool:
     """Whether numba has cached compiled kernels on disk (else the first generation compiles).
 
@@ -209,7 +249,13 @@ def train(
         if generations is not None:
             config = config.with_overrides({"generations": generations})
         prepare_run_dir(out, config)
+    resolve()  # a bad PHYSROVER_ENGINE fails before anything is printed
     log = TensorBoardLog(out) if tensorboard else None
+    total = config.learn.generations
+    bar = Progress(total, f"{config.learn.method} gen", unit="gen") if progress else None
+    if bar:  # the first world reset and generation compile (or load) the kernels
+        bar.warm_up("loading compiled kernels" if _kernels_cached()
+                    else "compiling kernels, first run only")  # fmt: skip
     ccea = CCEA(config)
     rows: list[dict] = []
     if resume and (out / STATE_JSON).exists():
@@ -219,20 +265,11 @@ def train(
     elif resume:
         _write_metrics(out / METRICS, [])  # started but never checkpointed: start over
 
-    total = config.learn.generations
-    bar = (
-        Progress(total, f"{config.learn.method} gen", ccea.generation, unit="gen")
-        if progress
-        else None
-    )
     best = max((r["eval_G"] for r in rows), default=float("nan"))
     with open(out / METRICS, "a", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=stats_header())
+        first = True  # the rate and time left count from the end of the first generation
         while ccea.generation < total:
-            first = bar is not None and ccea.generation == bar.start
-            if first:  # compiles (or loads) the kernels: not counted in the rate
-                bar.warm_up("compiling kernels, first run only" if not _kernels_cached()
-                            else "loading compiled kernels")  # fmt: skip
             stats = ccea.run_generation()
             writer.writerow({k: _fmt(v) for k, v in asdict(stats).items()})
             best = stats.eval_G if math.isnan(best) else max(best, stats.eval_G)
@@ -247,6 +284,7 @@ def train(
             if bar:
                 if first:
                     bar.restart_clock(done)
+                    first = False
                 bar.update(done, **{"eval G": stats.eval_G, "best G": best})
     if bar:
         bar.close()

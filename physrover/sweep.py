@@ -42,6 +42,7 @@ from typing import Any
 
 from physrover.config import ConfigError, RunConfig, load_toml_file, naming_file
 from physrover.progress import Progress
+from physrover.runs import drop_state
 from physrover.threads import pin_threads
 
 
@@ -50,6 +51,8 @@ class RunSpec:
     name: str
     config_toml: str
     out: str
+    drop_state: bool = False
+    """Delete the run's state.npz when it finishes (see :func:`physrover.runs.drop_state`)."""
 
 
 @dataclass(frozen=True)
@@ -93,8 +96,11 @@ class Sweep:
         name = str(meta.get("name", Path(path).stem))
         return cls(name, base, grid, seeds, variants)
 
-    def runs(self, root: str | Path, seeds: int | None = None) -> list[RunSpec]:
-        """Every cell x seed, with its resolved config; invalid cells are config errors."""
+    def runs(
+        self, root: str | Path, seeds: int | None = None, drop_state: bool = False
+    ) -> list[RunSpec]:
+        """Every cell x seed, with its resolved config; invalid cells are config errors.
+        ``drop_state``: each run deletes its state.npz when it finishes."""
         fields = list(self.grid)
         specs = []
         cells = itertools.product(itertools.product(*(self.grid[f] for f in fields)), self.variants)
@@ -103,7 +109,8 @@ class Sweep:
                 overrides = {**dict(zip(fields, values, strict=True)), **variant, "seed": seed}
                 config = self.base.with_overrides(overrides)
                 name = "_".join(f"{f}={_slug(v)}" for f, v in overrides.items())
-                specs.append(RunSpec(name, config.to_toml(), str(Path(root) / self.name / name)))
+                out = str(Path(root) / self.name / name)
+                specs.append(RunSpec(name, config.to_toml(), out, drop_state))
         return specs
 
 
@@ -148,6 +155,8 @@ def run_one(spec: RunSpec) -> tuple[str, float, str | None]:
                           progress=False)  # fmt: skip
             else:
                 train(config, out, progress=False)
+        if spec.drop_state:
+            drop_state(Path(spec.out))
         return spec.name, time.perf_counter() - start, None
     except Exception as exc:  # a crashed run is reported, the others go on
         detail = "".join(traceback.format_exception_only(type(exc), exc)).strip()

@@ -1,6 +1,7 @@
 """Sweeps: grid expansion, local pool vs Ray equality, skip and resume, crash reporting."""
 
 import os
+from pathlib import Path
 
 import pytest
 from conftest import comparable_rows
@@ -133,3 +134,20 @@ collisions = false
     assert (physics.motion, physics.collisions) == ("physics", False)
     with pytest.raises(ConfigError, match="motion: must be one of"):
         _sweep(tmp_path, SWEEP + '\n[[variants]]\nmotion = "teleport"\n')
+
+
+def test_drop_state_keeps_what_plots_and_videos_need(tmp_path):
+    from physrover.runs import RunError, load_champions
+
+    specs = _sweep(tmp_path).runs(tmp_path / "drop", drop_state=True)[:2]
+    run_sweep(specs, workers=1, progress=False)
+    for spec in specs:
+        names = {p.name for p in os.scandir(spec.out)}
+        assert "state.npz" not in names
+        assert {"config.toml", "metrics.csv", "state.json", "champions"} <= names
+        assert run_status(spec) == "done"
+        load_champions(Path(spec.out))
+    again = run_sweep(specs, workers=1, progress=False)  # finished: skipped, not re-run
+    assert again.skipped == 2 and not again.finished
+    with pytest.raises(RunError, match="state.npz was dropped"):
+        train(None, specs[0].out, resume=True, generations=99, progress=False)
