@@ -13,7 +13,24 @@ from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
 from physrover.learn import fitness as _fitness  # noqa: F401  (registers the fitness methods)
 
 __version__ = "0.1.0"
-__all__ = ["ConfigError", "DomainConfig", "ENV_ID", "RoverEnv", "RoverVectorEnv", "__version__"]
+__all__ = [
+    "ConfigError",
+    "DomainConfig",
+    "ENV_ID",
+    "RoverEnv",
+    "RoverVectorEnv",
+    "__version__",
+    "parallel_env",
+]
+
+
+def __getattr__(name: str):
+    if name == "parallel_env":  # the PettingZoo env; pettingzoo is optional (physrover[marl])
+        from physrover.marl import parallel_env
+
+        return parallel_env
+    raise AttributeError(f"module 'physrover' has no attribute {name!r}")
+
 
 if ENV_ID not in gymnasium.registry:
     gymnasium.register(
