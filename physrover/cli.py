@@ -13,7 +13,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from physrover.config import ConfigError, RunConfig, parse_override
-from physrover.engine import ENGINES, ENV_VAR, EngineError, resolve
 from physrover.registry import FITNESS_METHODS
 from physrover.render import VideoError
 from physrover.runs import RunError, find_runs, last_checkpoint, load_run_config
@@ -140,10 +139,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from physrover import bench
 
     pin_threads(args.threads)
-    if args.engine:  # read by every world, policy and critic built from here on
-        os.environ[ENV_VAR] = args.engine
     config = _run_config(args)
-    print(f"engine: {resolve()}")
     if args.what == "world":
         timing = bench.bench_world(config.domain, n_teams=args.teams, repeats=args.repeats)
         print(timing.line())
@@ -376,11 +372,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--teams", type=int, default=50, help="teams stepped together (default 50)")
     p.add_argument("--repeats", type=int, default=20, help="timed runs/generations (default 20)")
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
-    p.add_argument(
-        "--engine",
-        choices=ENGINES,
-        help=f"compiled kernels or the numpy reference (default: ${ENV_VAR} or numba)",
-    )
     _add_config_args(p)
     p.set_defaults(func=cmd_bench)
     return parser
@@ -392,9 +383,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:  # bare `physrover`: show the commands, not just "required"
         parser.print_help(sys.stderr)
         return 2
+    if "PHYSROVER_ENGINE" in os.environ:  # physrover 0.1 had a numpy engine beside numba
+        print("physrover: note: PHYSROVER_ENGINE is no longer read; the compiled kernels are "
+              "the one implementation (NUMBA_DISABLE_JIT=1 runs them as Python)",
+              file=sys.stderr)  # fmt: skip
     try:
         return args.func(args)
-    except (ConfigError, EngineError, UsageError, RunError, VideoError) as exc:
+    except (ConfigError, UsageError, RunError, VideoError) as exc:
         print(f"physrover: error: {exc}", file=sys.stderr)
         return 2
     except Interrupted as exc:

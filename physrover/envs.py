@@ -40,7 +40,8 @@ def resolve_config(
     raise TypeError(f"config must be a DomainConfig or a mapping, got {type(config).__name__}")
 
 
-def _spaces(config: DomainConfig) -> tuple[spaces.Box, spaces.Box]:
+def team_spaces(config: DomainConfig) -> tuple[spaces.Box, spaces.Box]:
+    """(observation, action) spaces of one team: (R, n_obs) from the sensor, (R, 2)."""
     shape = (config.n_rovers,)
     observation = spaces.Box(0.0, np.inf, shape=(*shape, OBS_DIM), dtype=np.float32)
     action = spaces.Box(-1.0, 1.0, shape=(*shape, ACTION_DIM), dtype=np.float32)
@@ -111,7 +112,7 @@ class RoverEnv(gymnasium.Env):
                 f"got {render_mode!r}"
             )
         self.render_mode = render_mode
-        self.observation_space, self.action_space = _spaces(self.config)
+        self.observation_space, self.action_space = team_spaces(self.config)
         self.world = RoverWorld(self.config, n_teams=1)
         self._last_G = 0.0
 
@@ -209,7 +210,7 @@ class RoverVectorEnv(VectorEnv):
         self.config = resolve_config(config, fields)
         self.num_envs = int(num_envs)
         self.render_mode = render_mode
-        self.single_observation_space, self.single_action_space = _spaces(self.config)
+        self.single_observation_space, self.single_action_space = team_spaces(self.config)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.world = RoverWorld(self.config, n_teams=self.num_envs)

@@ -90,7 +90,7 @@ def evaluate_run(
     domain = config.domain.replace(**changes)
     generation, genomes = load_champions(run_dir, checkpoint)
     env = RoverVectorEnv(episodes, config=domain)
-    act = PolicyLayout(config.learn.hidden).prepare(
+    act = PolicyLayout(config.learn.hidden, env.single_observation_space.shape[-1]).prepare(
         np.broadcast_to(genomes, (episodes, *genomes.shape))
     )
     obs, info = env.reset(seed=seed)

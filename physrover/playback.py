@@ -75,12 +75,12 @@ def record_run(
     run_dir, out = Path(run_dir), Path(out)
     config = load_run_config(run_dir)
     generation, genomes = load_champions(run_dir, checkpoint)
-    layout = PolicyLayout(config.learn.hidden)
     render = render or RenderConfig()
     domains: list[DomainConfig] = [config.domain]
     if side_by_side:
         domains = [config.domain.replace(motion="ideal"), config.domain.replace(motion="physics")]
     envs = [RoverEnv(config=d) for d in domains]
+    layout = PolicyLayout(config.learn.hidden, envs[0].observation_space.shape[-1])
     width = render.width * len(envs) + DIVIDER_PX * (len(envs) - 1)
     scores = []
     with VideoWriter(out, width, render.height, render.fps) as video:

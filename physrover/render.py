@@ -4,8 +4,8 @@ A frame shows one team:
 
 - POIs as circles sized by value, with their capture-radius ring, grey until captured and
   green from the step of capture, labelled with their value (above right) and ``n/n_req``
-  (under the ring): the rovers within ``d_cap`` of the POI now (:func:`rovers_in_range`, the
-  scoring's comparison) against the coupling, green when it is met now.
+  (under the ring): the rovers within ``d_cap`` of the POI now (as the world's scoring counted
+  them, ``RoverWorld.poi_counts``) against the coupling, green when it is met now.
 - Each rover as a filled circle in its own colour (consistent by index; no greys or greens,
   so a rover never looks like a POI) with a thin dark outline, so overlapping bodies stay
   distinct, a heading tick and a trail of its last positions.
@@ -37,7 +37,6 @@ import cv2
 import numpy as np
 
 from physrover.config import ConfigBase, DomainConfig, check
-from physrover.domain.scoring import in_range
 
 BACKGROUND = (246, 246, 246)  # BGR
 POI_FREE = (150, 150, 150)
@@ -179,6 +178,7 @@ class FrameState:
         headings: (R,) current headings, radians counter-clockwise from the world x axis.
         poi_positions: (K, 2) world positions; poi_values: (K,).
         capture_step: (K,) step at which each POI was first captured, -1 if not yet.
+        poi_counts: (K,) rovers within d_cap of each POI now (Eq. 13, the world's count).
         step: current step t; G: score so far.
     """
 
@@ -187,19 +187,9 @@ class FrameState:
     poi_positions: np.ndarray
     poi_values: np.ndarray
     capture_step: np.ndarray
+    poi_counts: np.ndarray
     step: int
     G: float
-
-
-def rovers_in_range(
-    rover_positions: np.ndarray, poi_positions: np.ndarray, d_cap: float, d_min: float
-) -> np.ndarray:
-    """(K,) int: how many of the (R, 2) rovers are within ``d_cap`` of each of the (K, 2)
-    POIs, with the scoring's comparison (Eqs. 13-14: ``max(distance, d_min)^2 <= d_cap^2``;
-    float64, so a rover within ~1e-6 of the circle may differ from a float32 engine)."""
-    offsets = np.asarray(rover_positions, np.float64)[:, None] - np.asarray(poi_positions)
-    delta_sq = np.maximum(np.einsum("rkc,rkc->rk", offsets, offsets), d_min * d_min)
-    return in_range(delta_sq, d_cap).sum(axis=0)
 
 
 def _pt(p) -> tuple[int, int]:
@@ -274,7 +264,6 @@ def draw_frame(
     img = np.empty((render.height, render.width, 3), dtype=np.uint8)
     img[:] = BACKGROUND
     aa = cv2.LINE_AA
-    counts = rovers_in_range(state.positions[-1], state.poi_positions, domain.d_cap, domain.d_min)
     # POIs: capture ring and a disc sized by value; then the rovers: trails and bodies.
     vmax, ring_px = float(np.max(state.poi_values)), max(1, int(tf.scale * domain.d_cap))
     centres = [_pt(p) for p in tf(state.poi_positions)]
@@ -285,7 +274,7 @@ def draw_frame(
         cv2.circle(img, centres[k], int(4 + 8 * value / vmax), colour, -1, aa)
     _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain)
     # POI labels on top of the rovers: the value and the rovers in range / n_req.
-    counts = rovers_in_range(state.positions[-1], state.poi_positions, domain.d_cap, domain.d_min)
+    counts = state.poi_counts
     for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
         _text(img, f"{value:g}", (x + 12, y - 10), 0.45, TEXT, halo=True)
         met = counts[k] >= domain.n_req
@@ -317,6 +306,7 @@ def world_state(world, team: int) -> FrameState:
         poi_positions=np.array(world.poi_positions[team]),
         poi_values=np.array(world.poi_values[team]),
         capture_step=np.array(world.scores.capture_step[team]),
+        poi_counts=np.array(world.poi_counts[team]),
         step=t,
         G=float(world.G[team]),
     )
@@ -457,7 +447,6 @@ __all__ = [
     "label",
     "rover_colour",
     "rover_rgb",
-    "rovers_in_range",
     "world_frame",
     "world_state",
 ]

@@ -27,7 +27,6 @@ from pathlib import Path
 import numpy as np
 
 from physrover.config import ConfigError, RunConfig
-from physrover.engine import resolve
 from physrover.learn.ccea import CCEA, GenerationStats, stats_header
 from physrover.progress import Progress
 
@@ -249,7 +248,6 @@ def train(
         if generations is not None:
             config = config.with_overrides({"generations": generations})
         prepare_run_dir(out, config)
-    resolve()  # a bad PHYSROVER_ENGINE fails before anything is printed
     log = TensorBoardLog(out) if tensorboard else None
     total = config.learn.generations
     bar = Progress(total, f"{config.learn.method} gen", unit="gen") if progress else None

@@ -1,6 +1,10 @@
-"""Fitness critics: gradients of Eqs. 7 and 9 against finite differences, aggregation, replay."""
+"""Fitness critics: gradients of Eqs. 7 and 9 against finite differences, aggregation, replay.
+
+The gradient formula is checked on the numpy oracle (tests/oracles.py) in float64; the
+compiled update kernel is checked against that oracle in test_kernels.py."""
 
 import numpy as np
+import oracles
 import pytest
 
 from physrover.learn.critics import (
@@ -13,15 +17,18 @@ from physrover.learn.critics import (
 
 
 def _critic(aggregation, update, hidden=6, seed=0):
-    # The numpy reference in float64: these tests check its hand-written gradients; the
-    # compiled kernels are checked against it in test_kernels.py.
+    """The numpy oracle of a FitnessCritic, in float64 for the finite differences."""
     settings = CriticSettings(aggregation, update, hidden, 0.01, 1e-3, "sgd", 100, 4, 3)
-    fc = FitnessCritic(2, 5, settings, np.random.default_rng(seed), engine="numpy")
-    c = fc.critics
-    c.W1, c.b1, c.b2 = (p.astype(np.float64) for p in c.params())  # float64 for the check
-    c.b2 += 0.3
-    fc.optimizer.params = c.params()
-    return fc
+    oracle = oracles.CriticOracle(FitnessCritic(2, 5, 10, settings, np.random.default_rng(seed)))
+    oracle.W1, oracle.b1, oracle.b2 = (
+        p.astype(np.float64) for p in (oracle.W1, oracle.b1, oracle.b2)
+    )
+    oracle.b2 += 0.3
+    return oracle
+
+
+def _params(oracle):
+    return [oracle.W1, oracle.b1, oracle.b2]
 
 
 def _half_squared_error(fc, items, feedback):
@@ -43,7 +50,7 @@ def test_update_direction_is_minus_the_gradient_of_half_squared_error(aggregatio
     feedback = rng.normal(size=(2, 4)) * 3
     _, directions = fc.errors_and_directions(items, feedback)
     eps = 1e-6
-    for param, direction in zip(fc.critics.params(), directions, strict=True):
+    for param, direction in zip(_params(fc), directions, strict=True):
         flat = param.reshape(-1)
         numeric = np.zeros_like(flat)
         for j in range(flat.size):
@@ -60,7 +67,8 @@ def test_update_direction_is_minus_the_gradient_of_half_squared_error(aggregatio
 def test_output_weights_are_fixed_to_one():
     # C(x) = sum_h lrelu(z_h) + b2 before and after updates: the hidden-to-output weights are
     # not parameters at all, and only W1, b1, b2 change.
-    fc = _critic("max", "inexact")
+    settings = CriticSettings("max", "inexact", 6, 0.01, 1e-3, "sgd", 100, 4, 3)
+    fc = FitnessCritic(2, 5, 10, settings, np.random.default_rng(0))
     rng = np.random.default_rng(2)
     fc.store(rng.normal(size=(2, 4, 5, 10)), rng.normal(size=(2, 4)))
     before = [p.copy() for p in fc.critics.params()]
@@ -78,11 +86,11 @@ def test_max_aggregation_credits_only_the_argmax_pair():
     traj = rng.normal(size=(2, 1, 5, 10))
     feedback = np.array([[2.0], [-1.0]])
     delta, directions = fc.errors_and_directions(traj, feedback)
-    values = fc.critics(traj[:, 0])  # (2, 5)
+    values = fc(traj[:, 0])  # (2, 5)
     best = values.argmax(1)
     only = np.zeros((2, 5))
     only[np.arange(2), best] = delta[:, 0]
-    expected = fc.critics.weighted_grad(traj[:, 0], only)
+    expected = fc.weighted_grad(traj[:, 0], only)
     for got, want in zip(directions, expected, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12)
     np.testing.assert_allclose(delta[:, 0], feedback[:, 0] - values.max(1))
@@ -97,7 +105,7 @@ def test_aggregate_values_and_weights():
 
 
 def test_intermediate_critic_hand_value():
-    c = IntermediateCritics(1, 2, 0.01, np.random.default_rng(0))
+    c = IntermediateCritics(1, 10, 2, 0.01, np.random.default_rng(0))
     c.W1[...] = 0.0
     c.W1[0, 0] = [1.0, -1.0]  # z = (x0 + 0.5, -x0 - 0.5)
     c.b1[...] = [0.5, -0.5]
@@ -127,10 +135,10 @@ def test_paper_capacities_hold_ten_generations():
     # k = 50 policies x 50 steps: regular stores 50 trajectories, inexact 2500 pairs per
     # generation; the paper's capacities (500, 25000) keep the last 10 generations.
     from physrover.config import LearnConfig
-    from physrover.learn.fitness import make_method
+    from physrover.learn.fitness import Problem, make_method
 
     cfg = LearnConfig(method="max-critic")
-    method = make_method(cfg, 2, 50, np.random.default_rng(0))
+    method = make_method(cfg, Problem(2, 50, 8, 2), np.random.default_rng(0))
     traj = np.zeros((2, 50, 50, 10), dtype=np.float32)
     for g in range(12):
         traj[...] = g

@@ -33,8 +33,8 @@ def _single_env_G(run_dir, seeds, **changes):
     """Oracle: the champion team played episode by episode in the single env."""
     config = RunConfig.load(run_dir / "config.toml")
     _, genomes = load_champions(run_dir)
-    layout = PolicyLayout(config.learn.hidden)
     env = RoverEnv(config=config.domain.replace(**changes))
+    layout = PolicyLayout(config.learn.hidden, env.observation_space.shape[-1])
     scores = []
     for seed in seeds:
         obs, _ = env.reset(seed=seed)

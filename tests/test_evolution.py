@@ -1,9 +1,9 @@
 """Binary tournament with Cauchy mutation: selection, copying, mutation statistics."""
 
 import numpy as np
+import oracles
 import pytest
 
-from physrover.engine import ENGINES
 from physrover.learn.evolution import evolve, tournament_pairs
 from physrover.learn.policies import PolicyLayout
 
@@ -31,7 +31,7 @@ def test_ties_are_broken_at_random_and_nan_never_wins():
 
 def test_losers_become_mutated_copies_and_mutation_rate_is_respected():
     rng = np.random.default_rng(2)
-    layout = PolicyLayout(32)
+    layout = PolicyLayout(32, 8)
     genomes = layout.init((15, 50), rng)
     before = genomes.copy()
     fitness = rng.normal(size=(15, 50))
@@ -51,22 +51,25 @@ def test_losers_become_mutated_copies_and_mutation_rate_is_respected():
 
 def test_odd_population_keeps_its_size():
     rng = np.random.default_rng(3)
-    genomes = PolicyLayout(4).init((2, 7), rng)
+    genomes = PolicyLayout(4, 8).init((2, 7), rng)
     winners, losers = evolve(genomes, rng.normal(size=(2, 7)), rng, 0.5)
     assert winners.shape == (2, 3) and genomes.shape[1] == 7
 
 
-@pytest.mark.parametrize("engine", ENGINES)
-def test_policy_forward_matches_a_plain_loop(engine):
+@pytest.mark.parametrize("n_in", [8, 12])  # the paper's sensor, and one of 6 sectors
+def test_policy_forward_matches_a_plain_loop(n_in):
     rng = np.random.default_rng(4)
-    layout = PolicyLayout(5, engine=engine)
+    layout = PolicyLayout(5, n_in)
     genomes = layout.init((3, 2), rng)
-    obs = rng.random((3, 2, 8)).astype(np.float32)
+    obs = rng.random((3, 2, n_in)).astype(np.float32)
     out = layout.act(genomes, obs)
+    np.testing.assert_allclose(out, oracles.policy_actions(genomes, 5, obs), rtol=1e-5, atol=1e-6)
     b = layout.bounds
     for e in range(3):
         for r in range(2):
             g = genomes[e, r]
-            h = np.maximum(obs[e, r] @ g[b[0] : b[1]].reshape(8, 5) + g[b[1] : b[2]], 0)
+            h = np.maximum(obs[e, r] @ g[b[0] : b[1]].reshape(n_in, 5) + g[b[1] : b[2]], 0)
             expected = np.tanh(h @ g[b[2] : b[3]].reshape(5, 2) + g[b[3] : b[4]])
             np.testing.assert_allclose(out[e, r], expected, rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match=f"{n_in} inputs"):
+        layout.act(genomes, obs[..., :-1])

@@ -150,14 +150,10 @@ def test_set_resolves_names_across_tables():
         (["train", "--set", "n_req=99"], "n_req: must be in [1, n_rovers=15]"),
         (["train", "--set", "colour=red"], "colour: unknown config field"),
         (["train", "--resume", "nowhere"], "nowhere is not a run directory"),
-        (["ENGINE=gpu", "train", "--generations", "1"], "PHYSROVER_ENGINE must be one of"),
     ],
 )
 def test_cli_errors_are_one_line(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    if argv[0].startswith("ENGINE="):
-        monkeypatch.setenv("PHYSROVER_ENGINE", argv[0].split("=")[1])
-        argv = argv[1:]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("physrover: error: ") and message in err
@@ -186,3 +182,9 @@ def test_cli_train_then_refuses_a_non_empty_dir_and_resumes(tmp_path, capsys):
     assert "not empty; use --resume" in capsys.readouterr().err
     assert main(["train", "--resume", str(out), "--generations", "3", "--quiet"]) == 0
     assert len(read_metrics(out / "metrics.csv")) == 3
+
+
+def test_the_old_engine_variable_is_noted_not_obeyed(capsys, monkeypatch):
+    monkeypatch.setenv("PHYSROVER_ENGINE", "numpy")
+    assert main(["methods"]) == 0
+    assert "PHYSROVER_ENGINE is no longer read" in capsys.readouterr().err

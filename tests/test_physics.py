@@ -8,10 +8,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from physrover import DomainConfig, RoverEnv, RoverVectorEnv
-from physrover.domain.geometry import relate
 from physrover.domain.physics import separate
-from physrover.domain.sensing import numerators, sense
-from physrover.domain.world import RoverWorld
+from physrover.domain.world import RoverWorld, Scenario
 
 
 def _rollout(env, seed, actions):
@@ -164,21 +162,19 @@ def test_same_seed_is_bit_identical_whatever_ran_before():
 
 
 def test_scoring_and_sensing_are_the_shared_implementation():
-    # Same rover state in both worlds -> the same observation and in-range mask, bit for bit
-    # (on the numpy reference engine, which this compares with relate + sense directly).
+    # Same rover state in both worlds -> the same observation and in-range counts, bit for bit.
     cfg = DomainConfig(n_rovers=5, n_req=2)
-    ideal = RoverWorld(cfg, 2, engine="numpy")
-    phys = RoverWorld(cfg.replace(motion="physics", collisions=False), 2, engine="numpy")
+    ideal = RoverWorld(cfg, 2)
+    phys = RoverWorld(cfg.replace(motion="physics", collisions=False), 2)
     gens = lambda: [np.random.default_rng(i) for i in range(2)]  # noqa: E731
     obs_ideal, obs_phys = ideal.reset(gens()), phys.reset(gens())
     np.testing.assert_array_equal(obs_ideal, obs_phys)
     rng = np.random.default_rng(0)
     for _ in range(5):
-        phys.step(rng.uniform(-1, 1, (2, 5, 2)))
-    rel = relate(phys.rover_positions, phys.rover_headings, phys.poi_positions, cfg.d_min)
-    np.testing.assert_array_equal(
-        sense(rel, numerators(5, phys.poi_values)).astype(np.float32), phys.observations[5]
-    )
+        obs_phys = phys.step(rng.uniform(-1, 1, (2, 5, 2)))
+    here = Scenario(rover_positions=phys.rover_positions, rover_headings=phys.rover_headings)
+    np.testing.assert_array_equal(ideal.reset(gens(), here), obs_phys)
+    np.testing.assert_array_equal(ideal.poi_counts, phys.poi_counts)
 
 
 def test_check_env_and_vector_equivalence_under_physics():

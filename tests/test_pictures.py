@@ -20,7 +20,6 @@ from physrover.render import (
     VideoError,
     VideoWriter,
     rover_rgb,
-    rovers_in_range,
     world_state,
 )
 
@@ -191,7 +190,7 @@ def test_clump_inset_only_while_clumped():
     assert (env.render()[top] == 246).all()
 
 
-def test_rovers_in_range_counts():
+def test_poi_counts_shown_are_the_scorings():
     # POI 1 at (15, 0), POI 2 at (0, 15), POIs 3, 4 at (-15, 0), (0, -15); d_cap 4, d_min 1.
     env = RoverEnv(n_rovers=5, n_req=2, render_mode="rgb_array")
     positions = [
@@ -202,10 +201,9 @@ def test_rovers_in_range_counts():
         (-5.0, -5.0),  # near nothing
     ]
     env.reset(seed=0, options={"rover_positions": positions, "rover_headings": [0.0] * 5})
-    world, config = env.unwrapped.world, env.config
-    counts = rovers_in_range(world.rover_positions[0], world.poi_positions[0],
-                             config.d_cap, config.d_min)  # fmt: skip
-    assert counts.tolist() == [2, 1, 0, 0]
+    world = env.unwrapped.world
+    assert world.poi_counts[0].tolist() == [2, 1, 0, 0]
+    assert world_state(world, 0).poi_counts.tolist() == [2, 1, 0, 0]
     # The same convention as the scoring: POI 1 (2 >= n_req) is captured at reset, no other.
     assert world.scores.capture_step[0].tolist() == [0, -1, -1, -1]
 
@@ -214,7 +212,7 @@ def test_record_run_side_by_side(tmp_path):
     config = RunConfig(DomainConfig(n_rovers=3, steps=4), LearnConfig(hidden=4))
     (tmp_path / "config.toml").write_text(config.to_toml())
     (tmp_path / "champions").mkdir()
-    genomes = PolicyLayout(4).init((3,), np.random.default_rng(0))
+    genomes = PolicyLayout(4, 8).init((3,), np.random.default_rng(0))
     np.save(tmp_path / "champions" / "gen_000007.npy", genomes)
     render = RenderConfig(width=160, height=120)
     out, scores = record_run(tmp_path, tmp_path / "sbs.mp4", episodes=2, side_by_side=True,

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from oracles import score_episode
 
 from physrover.config import DomainConfig
-from physrover.domain.scoring import score_episode
 from physrover.domain.world import RoverWorld, Scenario
 
 

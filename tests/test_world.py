@@ -4,9 +4,9 @@ import math
 
 import numpy as np
 import pytest
+from oracles import IdealMotion
 
 from physrover.config import DomainConfig
-from physrover.domain.motion import IdealMotion
 from physrover.domain.world import RoverWorld, Scenario
 
 

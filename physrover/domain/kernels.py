@@ -1,19 +1,20 @@
-"""Compiled kernels of the world step (see :mod:`physrover.engine`).
+"""Compiled kernels of the world step: the one implementation of Eqs. 11-16 and of the
+idealised motion (Section 4.1.2).
 
 - :func:`observe_and_score`: relations (Eq. 14 and the quadrants of
-  :mod:`physrover.domain.geometry`) + sensing (Eqs. 15-16, :mod:`physrover.domain.sensing`)
-  + scoring of one step (Eqs. 11-13 and the counterfactual counts of D,
-  :mod:`physrover.domain.scoring`) in one pass over the rover-object pairs;
+  :mod:`physrover.domain.sensing`) + sensing (Eqs. 15-16) + scoring of one step (Eqs. 11-13
+  and the counterfactual counts of D, :mod:`physrover.domain.scoring`) in one pass over the
+  rover-object pairs;
 - :func:`ideal_step`: a whole idealised world step in one call (check and clip the actions,
-  move as :mod:`physrover.domain.motion`, observe, score, record), so that a step costs one
-  call instead of a dozen.
+  move, observe, score, record), so that a step costs one call instead of a dozen.
 
-The numpy modules named are the reference these kernels are tested against.
+The tests compare them with plain numpy versions of the same equations (``tests/oracles.py``)
+and with hand-worked values. Run with ``NUMBA_DISABLE_JIT=1`` they are plain Python, for
+debugging.
 
-Precision: everything is computed in float64 (the numpy reference computes relations in
-float32); observations are returned as float32 either way. Sensor sums add the objects in
-the same order as the reference (rovers by index, then POIs); G sums the captured values in
-POI order.
+Precision: everything is computed in float64; observations are returned as float32. Sensor
+sums add the objects in a fixed order (rovers by index, then POIs); G sums the captured
+values in POI order.
 
 Headings enter the kernels as their cosine and sine, ``cos_h`` and ``sin_h`` (E, R), kept by
 the world next to the headings: a step needs those of the old heading (to move) and of the
@@ -32,7 +33,7 @@ import math
 
 import numpy as np
 
-from physrover.engine import jit
+from physrover.compiled import jit
 
 
 @jit
@@ -88,13 +89,14 @@ def _observe_team(
     capture_step,  # (E, K) int64, updated
     score,  # (E,) float64, written
     obs,  # (E, R, 8) float32, written
-    count,  # (K,) int64 scratch
+    counts,  # (E, K) int64, written: rovers within d_cap of each POI
     near,  # (R, K) int64 scratch
     acc,  # (8,) float64 scratch
 ):
     """Sense and score step ``t`` of team ``e`` (see :func:`observe_and_score`)."""
     n_rovers = cos_h.shape[1]
     n_pois = poi_positions.shape[1]
+    count = counts[e]
     count[:] = 0
     for i in range(n_rovers):
         c = cos_h[e, i]
@@ -150,25 +152,24 @@ def observe_and_score(
     captured_without,  # (E, R, K) bool, updated
     capture_step,  # (E, K) int64, updated
     score,  # (E,) float64, written
+    poi_counts,  # (E, K) int64, written: rovers within d_cap of each POI at this step
     obs,  # (E, R, 8) float32, written
 ):
     """Sense (Eqs. 15-16) and score (Eqs. 11-13) step ``t`` for every team, in place.
 
     ``captured``, ``captured_without``, ``capture_step`` and ``score`` (G so far) are the
-    arrays of a :class:`~physrover.domain.scoring.ScoreKeeper`, advanced exactly as its
-    ``record`` does. Each sensor channel adds its terms object by object in the reference's
-    order.
+    arrays of a :class:`~physrover.domain.scoring.ScoreKeeper`, advanced by one step. Each
+    sensor channel adds its terms object by object (rovers by index, then POIs).
     """
     n_teams, n_rovers = cos_h.shape
     n_pois = poi_positions.shape[1]
-    count = np.empty(n_pois, np.int64)
     near = np.empty((n_rovers, n_pois), np.int64)
     acc = np.empty(8)
     for e in range(n_teams):
         _observe_team(
             e, rover_positions, cos_h, sin_h, poi_positions, poi_values, d_min * d_min,
             d_cap * d_cap, n_req, t, captured, captured_without, capture_step, score, obs,
-            count, near, acc,
+            poi_counts, near, acc,
         )  # fmt: skip
 
 
@@ -192,6 +193,7 @@ def ideal_step(
     captured_without,
     capture_step,
     score,
+    poi_counts,
     obs,  # (E, R, 8) float32, written with the new observations
     obs_record,  # (E, R, 8) float32, written with them too (may be ``obs`` itself)
 ):
@@ -208,7 +210,6 @@ def ideal_step(
         for i in range(n_rovers):
             if math.isnan(commands[e, i, 0]) or math.isnan(commands[e, i, 1]):
                 return False
-    count = np.empty(n_pois, np.int64)
     near = np.empty((n_rovers, n_pois), np.int64)
     acc = np.empty(8)
     for e in range(n_teams):
@@ -232,7 +233,7 @@ def ideal_step(
         _observe_team(
             e, new_positions, cos_h, sin_h, poi_positions, poi_values, d_min * d_min,
             d_cap * d_cap, n_req, t, captured, captured_without, capture_step, score, obs,
-            count, near, acc,
+            poi_counts, near, acc,
         )  # fmt: skip
         for i in range(n_rovers):
             for c in range(8):

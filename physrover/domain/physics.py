@@ -54,7 +54,6 @@ import pymunk
 import pymunk.batch as pb
 
 from physrover.config import DomainConfig
-from physrover.domain.motion import commanded_move
 
 _ROVER = 0b01
 _WALL = 0b10
@@ -111,6 +110,29 @@ def separate(
         x[active] += np.where(apart, dx * scale, tie_x * (scale > 0) * min_distance).sum(axis=2)
         y[active] += np.where(apart, dy * scale, tie_y * (scale > 0) * min_distance).sum(axis=2)
     return np.stack([x, y], axis=-1)
+
+
+def body_to_world(vectors: np.ndarray, headings: np.ndarray) -> np.ndarray:
+    """Rotate (E, R, 2) vectors from each rover's frame into the world frame."""
+    cos_h, sin_h = np.cos(headings), np.sin(headings)
+    fwd, left = vectors[..., 0], vectors[..., 1]
+    out = np.empty(vectors.shape)
+    out[..., 0] = cos_h * fwd - sin_h * left
+    out[..., 1] = sin_h * fwd + cos_h * left
+    return out
+
+
+def commanded_move(actions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The world-frame vector of (E, R, 2) rover-frame commands and its direction.
+
+    Returns the (E, R, 2) vector and the (E, R) heading it points to, the current heading
+    where the command is zero. The setpoints of the physical controller: the command as
+    the idealised model would move (its kernel, ``domain.kernels._move``, computes the
+    same per rover).
+    """
+    move = body_to_world(actions, headings)
+    moved = (actions[..., 0] != 0) | (actions[..., 1] != 0)
+    return move, np.where(moved, np.arctan2(move[..., 1], move[..., 0]), headings)
 
 
 class PhysicsMotion:

@@ -16,11 +16,6 @@ from __future__ import annotations
 import numpy as np
 
 
-def in_range(delta_sq_poi: np.ndarray, d_cap: float) -> np.ndarray:
-    """Eq. 13: (E, R, K) bounded squared rover-POI distances -> (E, R, K) bool."""
-    return delta_sq_poi <= d_cap * d_cap
-
-
 def team_score(captured: np.ndarray, poi_values: np.ndarray) -> np.ndarray:
     """Eq. 11: (..., K) ever-captured mask and (E, K) or (K,) values -> (...) score G.
 
@@ -33,10 +28,12 @@ def team_score(captured: np.ndarray, poi_values: np.ndarray) -> np.ndarray:
 
 
 class ScoreKeeper:
-    """Accumulates captures over an episode for E teams and gives G and D at any step.
+    """The captures of an episode for E teams, and G and D at any step.
 
-    Call :meth:`reset` once, then :meth:`record` with the in-range mask after reset and after
-    every step. Memory is O(E R K), not O(T E R K): D is tracked online.
+    :meth:`reset` starts an episode; the world's compiled kernels
+    (:func:`physrover.domain.kernels.observe_and_score`) advance the arrays after reset and
+    after every step, and the world counts the steps in ``t``. Memory is O(E R K), not
+    O(T E R K): D is tracked online, through ``captured_without``.
     """
 
     def __init__(self, n_req: int):
@@ -57,18 +54,6 @@ class ScoreKeeper:
         self.score = np.zeros(n_teams)
         self.t = 0
 
-    def record(self, in_range_: np.ndarray) -> None:
-        """Add one step's (E, R, K) in-range mask (Eq. 13) for all teams."""
-        # (E, K) rovers in range; einsum reduces the middle axis ~2x faster than .sum(axis=1).
-        count = np.einsum("erk->ek", in_range_, dtype=np.int32)
-        now = count >= self.n_req  # Eq. 12
-        np.copyto(self.capture_step, self.t, where=now & ~self.captured)
-        self.captured |= now
-        # Eq. 12 without rover i: the count minus rover i's own indicator.
-        self.captured_without |= (count[:, None, :] - in_range_) >= self.n_req
-        self.score[:] = team_score(self.captured, self.poi_values)
-        self.t += 1
-
     @property
     def G(self) -> np.ndarray:
         """(E,) team score so far (Eq. 11), a copy."""
@@ -78,15 +63,3 @@ class ScoreKeeper:
     def D(self) -> np.ndarray:
         """(E, R) difference evaluation of every rover so far (Eq. 1, null counterfactual)."""
         return self.score[:, None] - team_score(self.captured_without, self.poi_values)
-
-
-def score_episode(
-    in_range_history: np.ndarray, poi_values: np.ndarray, n_req: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """G (E,) and D (E, R) of whole episodes from a (T, E, R, K) in-range history."""
-    _, n_teams, n_rovers, _ = in_range_history.shape
-    keeper = ScoreKeeper(n_req)
-    keeper.reset(n_teams, n_rovers, np.asarray(poi_values, dtype=np.float64))
-    for step in in_range_history:
-        keeper.record(step)
-    return keeper.G, keeper.D

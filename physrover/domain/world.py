@@ -12,12 +12,11 @@ Arrays carry the team axis first: positions (E, R, 2), headings (E, R), observat
 4. senses (Eqs. 15-16) and scores the step (Eqs. 12-13) from those relations,
 
 and records each rover's trajectory of (observation, action) pairs for the fitness critics.
-Steps 2 (idealised motion) and 3-4 run either as numpy array code (the reference:
-``motion``, ``geometry``, ``sensing``, ``scoring``) or as compiled loops
-(:mod:`physrover.domain.kernels`), per :mod:`physrover.engine`. With the compiled engine
-and idealised motion, the whole step (1-4 and the records) is one kernel call,
-:func:`~physrover.domain.kernels.ideal_step`; the physical model moves the rovers with
-pymunk between the clip and the compiled sensing.
+Steps 2-4 are compiled (:mod:`physrover.domain.kernels`): with idealised motion the whole
+step (1-4 and the records) is one kernel call, :func:`~physrover.domain.kernels.ideal_step`;
+the physical model moves the rovers with pymunk between the clip and the compiled sensing
+and scoring (:func:`~physrover.domain.kernels.observe_and_score`). Plain numpy versions of
+the same equations live in the tests (``tests/oracles.py``), which compare the two.
 """
 
 from __future__ import annotations
@@ -28,12 +27,10 @@ from typing import Any
 
 import numpy as np
 
-from physrover import engine as engines
 from physrover.config import DomainConfig
-from physrover.domain.geometry import relate
-from physrover.domain.motion import IdealMotion
-from physrover.domain.scoring import ScoreKeeper, in_range
-from physrover.domain.sensing import OBS_DIM, numerators, sense
+from physrover.domain.kernels import heading_trig, ideal_step, observe_and_score
+from physrover.domain.scoring import ScoreKeeper
+from physrover.domain.sensing import OBS_DIM
 
 ACTION_DIM = 2
 
@@ -83,9 +80,10 @@ def _team_array(name: str, value: Any, shape: tuple[int, ...], n_teams: int) -> 
 
 
 def make_motion(config: DomainConfig, n_teams: int):
-    """The motion model named by ``config.motion``."""
+    """The physical model for ``config.motion == "physics"``; None for the idealised model,
+    which the world's compiled step moves itself."""
     if config.motion == "ideal":
-        return IdealMotion()
+        return None
     if config.motion == "physics":
         from physrover.domain.physics import PhysicsMotion
 
@@ -99,12 +97,11 @@ class RoverWorld:
     Args:
         config: the domain.
         n_teams: E, the number of independent teams.
-        engine: ``"numba"`` (compiled kernels) or ``"numpy"`` (the reference); default from
-            ``PHYSROVER_ENGINE`` (see :mod:`physrover.engine`).
 
     After :meth:`reset` the state is in ``rover_positions`` (E, R, 2), ``rover_headings``
     (E, R), ``poi_positions`` (E, K, 2), ``poi_values`` (E, K); ``t`` is the number of steps
-    taken; ``G`` (E,) and ``D`` (E, R) are the scores so far. ``observations`` (steps, E, R, 8)
+    taken; ``G`` (E,) and ``D`` (E, R) are the scores so far, ``poi_counts`` (E, K) the rovers
+    within ``d_cap`` of each POI at the current step (Eq. 13). ``observations`` (steps, E, R, 8)
     and ``actions`` (steps, E, R, 2), float32, hold the trajectory: row t is the pair
     (s_t, a_t) of step t, valid for t < ``self.t``; ``position_history`` (steps + 1, E, R, 2)
     and ``heading_history`` (steps + 1, E, R) the states after reset and every step, valid
@@ -113,7 +110,7 @@ class RoverWorld:
     what you keep (the envs' infos hold copies).
     """
 
-    def __init__(self, config: DomainConfig, n_teams: int, engine: str | None = None):
+    def __init__(self, config: DomainConfig, n_teams: int):
         if not isinstance(config, DomainConfig):
             raise TypeError(f"config must be a DomainConfig, got {type(config).__name__}")
         if int(n_teams) < 1:
@@ -122,7 +119,6 @@ class RoverWorld:
         self.n_teams = int(n_teams)
         self.n_rovers = config.n_rovers
         self.n_pois = config.n_pois
-        self.engine = engines.resolve(engine)
         self.motion = make_motion(config, self.n_teams)
         self.scores = ScoreKeeper(config.n_req)
         shape = (config.steps, self.n_teams, self.n_rovers)
@@ -131,10 +127,11 @@ class RoverWorld:
         states = (config.steps + 1, self.n_teams, self.n_rovers)
         self.position_history = np.zeros((*states, 2))
         self.heading_history = np.zeros(states)
-        # cos and sin of the headings, kept by the compiled engine (see domain.kernels)
+        # cos and sin of the headings, kept next to them (see domain.kernels)
         self._cos_h = np.zeros(states[1:])
         self._sin_h = np.zeros(states[1:])
-        self._fused = self.engine == "numba" and isinstance(self.motion, IdealMotion)
+        self.poi_counts = np.zeros((self.n_teams, self.n_pois), dtype=np.int64)
+        self._fused = self.motion is None  # idealised: one compiled call per step
         self.t = -1  # not reset yet
 
     # -- state -------------------------------------------------------------------------------
@@ -179,10 +176,9 @@ class RoverWorld:
         if np.any(self.poi_values <= 0):
             raise ValueError("poi_values must be positive")
 
-        if self.engine == "numpy":  # the compiled kernel reads the POI values directly
-            self._numerators = numerators(n_rovers, self.poi_values)
-        # The physical model may push overlapping spawn positions apart.
-        self.rover_positions, self.rover_headings = self.motion.reset(positions, headings)
+        if self.motion is not None:  # the physical model may push overlapping spawns apart
+            positions, headings = self.motion.reset(positions, headings)
+        self.rover_positions, self.rover_headings = positions, headings
         self.scores.reset(n_teams, n_rovers, self.poi_values)
         self.t = 0
         obs = self._observe_and_score()
@@ -216,8 +212,6 @@ class RoverWorld:
     def _step_compiled(self, actions: np.ndarray) -> np.ndarray:
         """The idealised step as one kernel call: the new state is written straight into
         the history rows, and ``rover_positions``/``rover_headings`` become views of them."""
-        from physrover.domain.kernels import ideal_step
-
         if actions.dtype not in (np.float32, np.float64):
             actions = actions.astype(np.float64)
         cfg, scores, t = self.config, self.scores, self.t
@@ -244,10 +238,11 @@ class RoverWorld:
         return obs
 
     def _observe_and_score(self) -> np.ndarray:
-        if self.engine == "numba":
-            obs = self._observe_and_score_compiled()
-        else:
-            obs = self._observe_and_score_reference()
+        heading_trig(self.rover_headings, self._cos_h, self._sin_h)
+        obs = np.empty((self.n_teams, self.n_rovers, OBS_DIM), dtype=np.float32)
+        observe_and_score(self.rover_positions, self._cos_h, self._sin_h,
+                          *self._scoring_arguments(), obs)  # fmt: skip
+        self.scores.t += 1  # the kernel advanced the keeper's arrays (see ScoreKeeper)
         self.position_history[self.t] = self.rover_positions
         self.heading_history[self.t] = self.rover_headings
         if self.t < self.config.steps:
@@ -268,29 +263,8 @@ class RoverWorld:
             scores.captured_without,
             scores.capture_step,
             scores.score,
+            self.poi_counts,
         )
-
-    def _observe_and_score_compiled(self) -> np.ndarray:
-        from physrover.domain.kernels import heading_trig, observe_and_score
-
-        heading_trig(self.rover_headings, self._cos_h, self._sin_h)
-        obs = np.empty((self.n_teams, self.n_rovers, OBS_DIM), dtype=np.float32)
-        observe_and_score(
-            self.rover_positions,
-            self._cos_h,
-            self._sin_h,
-            *self._scoring_arguments(),
-            obs,
-        )
-        self.scores.t += 1  # the kernel advanced the keeper's arrays as ScoreKeeper.record does
-        return obs
-
-    def _observe_and_score_reference(self) -> np.ndarray:
-        rel = relate(
-            self.rover_positions, self.rover_headings, self.poi_positions, self.config.d_min
-        )
-        self.scores.record(in_range(rel.delta_sq[:, :, self.n_rovers :], self.config.d_cap))
-        return sense(rel, self._numerators).astype(np.float32)
 
     # -- results -----------------------------------------------------------------------------
 

@@ -34,10 +34,10 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from physrover.config import RunConfig
-from physrover.envs import RoverVectorEnv, generator_from_state
-from physrover.learn.critics import PAIR_DIM
+from physrover.envs import RoverVectorEnv, generator_from_state, team_spaces
 from physrover.learn.evolution import evolve
-from physrover.learn.fitness import make_method
+from physrover.learn.fitness import Problem, make_method
+from physrover.learn.kernels import dims, gather_trajectories
 from physrover.learn.policies import PolicyLayout
 
 
@@ -69,13 +69,15 @@ class CCEA:
         self.config = config
         d, cfg = config.domain, config.learn
         self.n_rovers, self.k = d.n_rovers, cfg.population
-        self.layout = PolicyLayout(cfg.hidden)
+        obs_space, action_space = team_spaces(d)  # sizes from the sensor and the domain
+        n_obs, n_act = obs_space.shape[-1], action_space.shape[-1]
+        self.layout = PolicyLayout(cfg.hidden, n_obs, n_act)
         seeds = np.random.SeedSequence(cfg.seed).spawn(6)
         init_rng, self.team_rng, self.evo_rng, critic_init, self.critic_rng, env_seq = [
             np.random.default_rng(s) for s in seeds
         ]
         self.genomes = self.layout.init((self.n_rovers, self.k), init_rng)
-        self.method = make_method(cfg, self.n_rovers, d.steps, critic_init)
+        self.method = make_method(cfg, Problem(self.n_rovers, d.steps, n_obs, n_act), critic_init)
         self.n_train = self.method.rounds * self.k
         self.env = RoverVectorEnv(self.n_train + cfg.eval_episodes, config=d)
         self.env.reset(seed=int(env_seq.integers(2**31)))
@@ -110,19 +112,14 @@ class CCEA:
         return np.take_along_axis(per_team.transpose(0, 2, 1), where, axis=-1)
 
     def _trajectories(self, where: np.ndarray) -> np.ndarray:
-        """(R, k, T, 10) trajectory of (s, a) pairs of each policy in round 0, from the
-        world's (T, E, R, 8) observations and (T, E, R, 2) actions; ``where[r, p]`` is the
-        team of policy p of rover r."""
+        """(R, k, T, D) trajectory of (s, a) pairs of each policy in round 0, from the
+        world's (T, E, R, n_obs) observations and (T, E, R, 2) actions (D = n_obs + 2);
+        ``where[r, p]`` is the team of policy p of rover r."""
         obs, act = self.env.world.trajectories()
-        if self.env.world.engine == "numba":
-            from physrover.learn.kernels import gather_trajectories
-
-            out = np.empty((self.n_rovers, self.k, obs.shape[0], PAIR_DIM), dtype=np.float32)
-            gather_trajectories(obs, act, where, out)
-            return out
-        pairs = np.concatenate([obs[:, : self.k], act[:, : self.k]], axis=-1)
-        pairs = pairs.transpose(2, 1, 0, 3)  # (R, k teams, T, 10)
-        return np.take_along_axis(pairs, where[:, :, None, None], axis=1)
+        pair_dim = obs.shape[-1] + act.shape[-1]
+        out = np.empty((self.n_rovers, self.k, obs.shape[0], pair_dim), dtype=np.float32)
+        gather_trajectories(obs, act, where, out, dims(obs.shape[-1]))
+        return out
 
     def run_generation(self) -> GenerationStats:
         cfg, R, k = self.config.learn, self.n_rovers, self.k

@@ -1,12 +1,13 @@
 """Fitness critics (paper Section 3): intermediate critics, aggregation, updates, replay.
 
-Intermediate critic of rover i (Eq. 2), for a state-action pair x = (s, a) in R^10:
+Intermediate critic of rover i (Eq. 2), for a state-action pair x = (s, a) in R^D:
 
     C(x; w) = sum_h lrelu(x . W1[:, h] + b1[h]) + b2
 
-a 10 -> 80 -> 1 network with leaky-ReLU hidden units (slope 0.01) whose hidden-to-output
-weights are fixed to 1; only W1, b1 and the output bias b2 train (paper Section 4.2). The
-critics of all R rovers are stacked and evaluated and trained together.
+a D -> 80 -> 1 network (D = 10 with the paper's sensor) with leaky-ReLU hidden units
+(slope 0.01) whose hidden-to-output weights are fixed to 1; only W1, b1 and the output
+bias b2 train (paper Section 4.2). The critics of all R rovers are stacked and evaluated
+and trained together.
 
 Fitness critic (Eqs. 3-5): the aggregate of C over the policy's trajectory T of this
 generation, ``F_max(T) = max_t C(x_t)`` or ``F_mean(T) = mean_t C(x_t)``.
@@ -21,10 +22,14 @@ rover's replay buffer, each a plain gradient step by default:
   its trajectory; ``dw = lr * sum_k (f_k - C(x_k)) grad_w C(x_k)``.
 
 Both are gradient descent on half the summed squared error, so ``optimizer="adam"`` runs
-Adam on the same gradient instead. Gradients are written out by hand (tested against
-finite differences): for weights ``u_n`` on pairs x_n,
+Adam on the same gradient instead. Gradients are written out by hand in the compiled
+kernels (:mod:`physrover.learn.kernels`; tested against finite differences and a plain numpy
+oracle): for weights ``u_n`` on pairs x_n,
 ``sum_n u_n grad C(x_n) = (X^T (u * g), sum_n u_n g_n, sum_n u_n)`` with
 ``g = lrelu'(X W1 + b1)``.
+
+Pairs have D = n_in + 2 inputs: the sensor's observation and the action (10 with the
+paper's sensor).
 """
 
 from __future__ import annotations
@@ -33,29 +38,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physrover.engine import resolve
-
-PAIR_DIM = 10  # 8 observation + 2 action
+from physrover.learn.kernels import critic_update, critic_values, dims
 
 
 class IntermediateCritics:
-    """R critics ``C(x) = sum_h lrelu(x W1 + b1)_h + b2``, stacked; float32 parameters.
-
-    ``engine`` chooses how :meth:`__call__` evaluates them: the compiled kernel (``"numba"``)
-    or the numpy code of this class (``"numpy"``); default from ``PHYSROVER_ENGINE``.
-    """
+    """R critics ``C(x) = sum_h lrelu(x W1 + b1)_h + b2`` (Eq. 2) on pairs of ``pair_dim``
+    inputs, stacked; float32 parameters W1 (R, D, H), b1 (R, H), b2 (R,)."""
 
     def __init__(
-        self,
-        n_critics: int,
-        hidden: int,
-        slope: float,
-        rng: np.random.Generator,
-        engine: str | None = None,
+        self, n_critics: int, pair_dim: int, hidden: int, slope: float, rng: np.random.Generator
     ):
-        self.engine = resolve(engine)
-        bound = 1.0 / np.sqrt(PAIR_DIM)  # PyTorch's default initialisation of a linear layer
-        self.W1 = rng.uniform(-bound, bound, (n_critics, PAIR_DIM, hidden)).astype(np.float32)
+        bound = 1.0 / np.sqrt(pair_dim)  # PyTorch's default initialisation of a linear layer
+        self.W1 = rng.uniform(-bound, bound, (n_critics, pair_dim, hidden)).astype(np.float32)
         self.b1 = rng.uniform(-bound, bound, (n_critics, hidden)).astype(np.float32)
         self.b2 = np.zeros(n_critics, dtype=np.float32)
         self.slope = np.float32(slope)
@@ -63,52 +57,17 @@ class IntermediateCritics:
     def params(self) -> list[np.ndarray]:
         return [self.W1, self.b1, self.b2]
 
-    def _hidden(self, x: np.ndarray) -> np.ndarray:
-        z = x @ self.W1  # (R, N, H) pre-activations
-        z += self.b1[:, None, :]
-        return z
-
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        """C for (R, N, 10) pairs -> (R, N) float32."""
-        if self.engine == "numpy":
-            return self._output(x, self._hidden(x))
-        from physrover.learn.kernels import critic_values
-
-        # The kernel keeps pairs in its innermost loop: pairs (R, 10, N), weights (R, H, 10).
+        """C for (R, N, D) pairs -> (R, N) float32."""
+        # The kernel keeps pairs in its innermost loop: pairs (R, D, N), weights (R, H, D).
         xT = np.ascontiguousarray(np.swapaxes(x, 1, 2), dtype=np.float32)
         out = np.empty(x.shape[:2], dtype=np.float32)
-        critic_values(self.W1T(), self.b1, self.b2, self.slope, xT, out)
+        critic_values(self.W1T(), self.b1, self.b2, self.slope, xT, out, dims(x.shape[-1]))
         return out
 
     def W1T(self) -> np.ndarray:
-        """(R, H, 10) contiguous copy of W1, the layout of the compiled kernels."""
+        """(R, H, D) contiguous copy of W1, the layout of the compiled kernels."""
         return np.ascontiguousarray(np.swapaxes(self.W1, 1, 2))
-
-    def _output(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """C from the pairs and their pre-activations (``z`` is overwritten).
-
-        ``sum_h lrelu(z_h) = slope * sum_h z_h + (1 - slope) * sum_h relu(z_h)``, and the
-        linear sum is ``x . sum_h W1[:, h] + sum_h b1[h]``: one pass over z instead of three.
-        """
-        linear = (x @ self.W1.sum(-1)[..., None])[..., 0] + self.b1.sum(-1)[:, None]
-        relu_sum = np.maximum(z, 0.0, out=z).sum(-1)
-        return self.slope * linear + (1 - self.slope) * relu_sum + self.b2[:, None]
-
-    def values_and_slopes(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """C(x) (R, N) and lrelu'(z) (R, N, H) from one forward pass."""
-        z = self._hidden(x)
-        g = (z > 0).astype(np.float32)  # lrelu'(z) = slope + (1 - slope) [z > 0]
-        g *= 1 - self.slope
-        g += self.slope
-        return self._output(x, z), g
-
-    def weighted_grad(self, x: np.ndarray, u: np.ndarray, g: np.ndarray | None = None):
-        """``sum_n u_n grad_w C(x_n)`` for (R, N, 10) pairs and (R, N) weights, per critic;
-        ``g`` (from :meth:`values_and_slopes`) is reused, and overwritten, when given."""
-        if g is None:
-            g = self.values_and_slopes(x)[1]
-        g *= u[..., None].astype(np.float32)  # (R, N, H): u_n dC(x_n)/db1
-        return [np.swapaxes(x, 1, 2) @ g, g.sum(1), u.sum(1)]
 
 
 def aggregate(values: np.ndarray, how: str) -> tuple[np.ndarray, np.ndarray]:
@@ -179,30 +138,6 @@ class ReplayBuffer:
         self.size, self.next = int(state["size"]), int(state["next"])
 
 
-class Optimizer:
-    """Ascent steps ``w += lr * d`` (plain, Eq. 6) or Adam on the descent gradient ``-d``."""
-
-    def __init__(self, params: list[np.ndarray], lr: float, kind: str = "sgd"):
-        self.params, self.lr, self.kind = params, lr, kind
-        self.t = 0
-        self.m = [np.zeros_like(p) for p in params]
-        self.v = [np.zeros_like(p) for p in params]
-
-    def step(self, directions: list[np.ndarray]) -> None:
-        if self.kind == "sgd":
-            for p, d in zip(self.params, directions, strict=True):
-                p += self.lr * d
-            return
-        b1, b2, eps = 0.9, 0.999, 1e-8
-        self.t += 1
-        for p, d, m, v in zip(self.params, directions, self.m, self.v, strict=True):
-            m *= b1
-            m += (1 - b1) * d
-            v *= b2
-            v += (1 - b2) * d * d
-            p += self.lr * (m / (1 - b1**self.t)) / (np.sqrt(v / (1 - b2**self.t)) + eps)
-
-
 @dataclass(frozen=True)
 class CriticSettings:
     aggregation: str  # "mean" | "max"
@@ -223,106 +158,94 @@ class FitnessCritic:
         self,
         n_rovers: int,
         steps: int,
+        pair_dim: int,
         settings: CriticSettings,
         rng: np.random.Generator,
-        engine: str | None = None,
     ):
-        self.settings = settings
-        self.critics = IntermediateCritics(
-            n_rovers, settings.hidden, settings.slope, rng, engine=engine
-        )
-        self.optimizer = Optimizer(self.critics.params(), settings.lr, settings.optimizer)
-        item = (steps, PAIR_DIM) if settings.update == "regular" else (PAIR_DIM,)
+        if settings.optimizer not in ("sgd", "adam"):
+            raise ValueError(f"unknown optimizer {settings.optimizer!r}")
+        self.settings, self.pair_dim = settings, pair_dim
+        self.critics = IntermediateCritics(n_rovers, pair_dim, settings.hidden, settings.slope, rng)
+        n_params = settings.hidden * (pair_dim + 1) + 1
+        # Adam's first and second moments of each critic's W1T | b1 | b2, and its step count.
+        self.moments = np.zeros((n_rovers, 2, n_params), dtype=np.float32)
+        self.adam_steps = 0
+        item = (steps, pair_dim) if settings.update == "regular" else (pair_dim,)
         self.buffer = ReplayBuffer(n_rovers, settings.capacity, item)
 
     def fitness(self, trajectories: np.ndarray) -> np.ndarray:
-        """F(T) of (R, k, T, 10) trajectories -> (R, k)."""
+        """F(T) of (R, k, T, D) trajectories -> (R, k)."""
         n_rovers, k, steps, _ = trajectories.shape
-        values = self.critics(trajectories.reshape(n_rovers, k * steps, PAIR_DIM))
+        values = self.critics(trajectories.reshape(n_rovers, k * steps, self.pair_dim))
         return aggregate(values.reshape(n_rovers, k, steps), self.settings.aggregation)[0]
 
     def store(self, trajectories: np.ndarray, feedback: np.ndarray) -> None:
-        """Add (R, k, T, 10) trajectories with their (R, k) immediate feedback."""
+        """Add (R, k, T, D) trajectories with their (R, k) immediate feedback."""
         if self.settings.update == "regular":
             self.buffer.add(trajectories, feedback)
         else:  # every pair carries its trajectory's feedback
             n_rovers, k, steps, _ = trajectories.shape
             self.buffer.add(
-                trajectories.reshape(n_rovers, k * steps, PAIR_DIM),
+                trajectories.reshape(n_rovers, k * steps, self.pair_dim),
                 np.repeat(feedback, steps, axis=1),
             )
 
-    def errors_and_directions(
-        self, items: np.ndarray, feedback: np.ndarray
-    ) -> tuple[np.ndarray, list[np.ndarray]]:
-        """delta (R, B) and the update direction ``sum_k delta_k grad`` (Eq. 7 or Eq. 9)."""
-        if self.settings.update == "inexact":
-            values, g = self.critics.values_and_slopes(items)
-            delta = feedback - values  # Eq. 10
-            return delta, self.critics.weighted_grad(items, delta, g)
-        n_rovers, batch, steps, _ = items.shape
-        pairs = items.reshape(n_rovers, batch * steps, PAIR_DIM)
-        values, g = self.critics.values_and_slopes(pairs)
-        F, dF = aggregate(values.reshape(n_rovers, batch, steps), self.settings.aggregation)
-        delta = feedback - F  # Eq. 8
-        u = (delta[..., None] * dF).reshape(n_rovers, batch * steps)
-        return delta, self.critics.weighted_grad(pairs, u, g)
-
     def update(self, rng: np.random.Generator) -> float:
-        """The generation's mini-batch updates; returns the mean squared error seen."""
+        """The generation's mini-batch updates (compiled: ``learn.kernels.critic_update``);
+        returns the mean squared error seen."""
         s = self.settings
         if self.buffer.size == 0:
             return float("nan")
         # All mini-batches are drawn up front (one draw instead of one per batch); the
-        # batches are independent uniform draws either way, and both engines draw the same.
-        if self.critics.engine == "numba" and s.optimizer == "sgd":
-            from physrover.learn.kernels import critic_sgd
+        # batches are independent uniform draws either way.
+        index = self.buffer.sample_index(rng, s.batches * s.batch)
+        items = self.buffer.items  # (R, C, T, D) trajectories or (R, C, D) pairs
+        if items.ndim == 3:  # inexact: entries of one pair
+            items = items[:, :, None, :]
+        c, W1T = self.critics, self.critics.W1T()
+        adam = s.optimizer == "adam"
+        loss = critic_update(W1T, c.b1, c.b2, c.slope, np.float32(s.lr), items,
+                             self.buffer.feedback, index, s.batch, s.aggregation == "max", adam,
+                             self.moments, self.adam_steps, dims(self.pair_dim))  # fmt: skip
+        c.W1[...] = np.swapaxes(W1T, 1, 2)
+        if adam:
+            self.adam_steps += s.batches
+        return float(loss)
 
-            index = self.buffer.sample_index(rng, s.batches * s.batch)
-            items = self.buffer.items  # (R, C, T, 10) trajectories or (R, C, 10) pairs
-            if items.ndim == 3:  # inexact: entries of one pair
-                items = items[:, :, None, :]
-            c, W1T = self.critics, self.critics.W1T()
-            loss = critic_sgd(
-                W1T,
-                c.b1,
-                c.b2,
-                c.slope,
-                np.float32(s.lr),
-                items,
-                self.buffer.feedback,
-                index,
-                s.batch,
-                s.aggregation == "max",
-            )
-            c.W1[...] = np.swapaxes(W1T, 1, 2)
-            return float(loss)
-        all_items, all_feedback = self.buffer.sample(rng, s.batches * s.batch)
-        losses = []
-        for b in range(s.batches):
-            part = slice(b * s.batch, (b + 1) * s.batch)
-            items, feedback = all_items[:, part], all_feedback[:, part]
-            delta, directions = self.errors_and_directions(items, feedback)
-            self.optimizer.step(directions)
-            losses.append(np.mean(delta**2))
-        return float(np.mean(losses))
+    def _moments_by_param(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Adam's m and v as [W1 (R, D, H), b1 (R, H), b2 (R,)] (the checkpoint layout)."""
+        n_rovers, hidden, n_w = self.moments.shape[0], self.settings.hidden, self.W_size
+        out = []
+        for which in (0, 1):
+            flat = self.moments[:, which]
+            W1T = flat[:, :n_w].reshape(n_rovers, hidden, self.pair_dim)
+            out.append([np.swapaxes(W1T, 1, 2).copy(), flat[:, n_w : n_w + hidden].copy(),
+                        flat[:, n_w + hidden].copy()])  # fmt: skip
+        return out[0], out[1]
+
+    @property
+    def W_size(self) -> int:
+        return self.settings.hidden * self.pair_dim
 
     def state(self) -> dict:
-        opt = self.optimizer
+        m, v = self._moments_by_param()
         return {
             "params": [p.copy() for p in self.critics.params()],
-            "adam_m": opt.m,
-            "adam_v": opt.v,
-            "adam_t": opt.t,
+            "adam_m": m,
+            "adam_v": v,
+            "adam_t": self.adam_steps,
             "buffer": self.buffer.state(),
         }
 
     def load(self, state: dict) -> None:
         for p, saved in zip(self.critics.params(), state["params"], strict=True):
             p[...] = saved
-        for mine, saved in zip(
-            self.optimizer.m + self.optimizer.v, state["adam_m"] + state["adam_v"], strict=True
-        ):
-            mine[...] = saved
-        self.optimizer.t = int(state["adam_t"])
+        n_rovers, n_w = self.moments.shape[0], self.W_size
+        for which, key in enumerate(("adam_m", "adam_v")):
+            W1, b1, b2 = (np.asarray(a, dtype=np.float32) for a in state[key])
+            flat = self.moments[:, which]
+            flat[:, :n_w] = np.swapaxes(W1, 1, 2).reshape(n_rovers, n_w)
+            flat[:, n_w:-1] = b1
+            flat[:, -1] = b2
+        self.adam_steps = int(state["adam_t"])
         self.buffer.load(state["buffer"])

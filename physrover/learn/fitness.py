@@ -141,15 +141,33 @@ CRITICS = {
 
 
 @dataclass(frozen=True)
+class Problem:
+    """What a fitness method is built for: the team and the sizes of its trajectories."""
+
+    n_rovers: int
+    steps: int
+    """Steps of an episode, T."""
+    obs_dim: int
+    """Observations per rover (the sensor's size; 8 for the paper's)."""
+    action_dim: int
+    """Actions per rover (2)."""
+
+    @property
+    def pair_dim(self) -> int:
+        """Inputs of a state-action pair, the critics' input size."""
+        return self.obs_dim + self.action_dim
+
+
+@dataclass(frozen=True)
 class MethodSpec:
     """A registered fitness method: how to build it, and what to tell a user about it.
 
-    ``build(cfg, n_rovers, steps, rng)`` returns a :class:`FitnessMethod`; ``rng`` is the
-    run's critic generator (initial critic weights), the only draw a method makes at
-    construction.
+    ``build(cfg, problem, rng)`` returns a :class:`FitnessMethod` for a :class:`Problem`;
+    ``rng`` is the run's critic generator (initial critic weights), the only draw a method
+    makes at construction.
     """
 
-    build: Callable[[LearnConfig, int, int, np.random.Generator], FitnessMethod]
+    build: Callable[[LearnConfig, Problem, np.random.Generator], FitnessMethod]
     summary: str
     """One line: what the fitness of a policy is."""
     section: str
@@ -161,7 +179,7 @@ def register_method(name: str, build, summary: str, section: str) -> MethodSpec:
     return FITNESS_METHODS.register(name, MethodSpec(build, summary, section))
 
 
-def _critic(cfg: LearnConfig, n_rovers: int, steps: int, rng: np.random.Generator):
+def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
     aggregation, update = CRITICS[cfg.method]
     regular = update == "regular"
     settings = CriticSettings(
@@ -175,36 +193,38 @@ def _critic(cfg: LearnConfig, n_rovers: int, steps: int, rng: np.random.Generato
         batch=cfg.trajectory_batch if regular else cfg.pair_batch,
         batches=cfg.trajectory_batches if regular else cfg.pair_batches,
     )
-    return CriticFitness(FitnessCritic(n_rovers, steps, settings, rng))
+    return CriticFitness(
+        FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)
+    )
 
 
 register_method(
     "D",
-    lambda cfg, n, steps, rng: SingleEpisode(use_G=False),
+    lambda cfg, problem, rng: SingleEpisode(use_G=False),
     "the policy's difference evaluation D (Eq. 1) in one episode",
     "Sec. 2.2 (Eq. 1)",
 )
 register_method(
     "G",
-    lambda cfg, n, steps, rng: SingleEpisode(use_G=True),
+    lambda cfg, problem, rng: SingleEpisode(use_G=True),
     "the team's score G of the policy's one episode",
     "Sec. 4.1 (Eq. 11)",
 )
 register_method(
     "average",
-    lambda cfg, n, steps, rng: Sampled(cfg.n_samples, "mean"),
+    lambda cfg, problem, rng: Sampled(cfg.n_samples, "mean"),
     "mean feedback over n_samples episodes with fresh teammates",
     "Sec. 2.3, 4",
 )
 register_method(
     "leniency",
-    lambda cfg, n, steps, rng: Sampled(cfg.n_samples, "max"),
+    lambda cfg, problem, rng: Sampled(cfg.n_samples, "max"),
     "max feedback over n_samples episodes with fresh teammates",
     "Sec. 2.3",
 )
 register_method(
     "hall-of-fame",
-    lambda cfg, n, steps, rng: HallOfFame(n),
+    lambda cfg, problem, rng: HallOfFame(problem.n_rovers),
     "feedback with the best team found so far as teammates",
     "Sec. 2.3",
 )
@@ -234,8 +254,6 @@ register_method(
 )
 
 
-def make_method(
-    cfg: LearnConfig, n_rovers: int, steps: int, rng: np.random.Generator
-) -> FitnessMethod:
+def make_method(cfg: LearnConfig, problem: Problem, rng: np.random.Generator) -> FitnessMethod:
     """The fitness method named by ``cfg.method``; ``rng`` initialises critics."""
-    return FITNESS_METHODS[cfg.method].build(cfg, n_rovers, steps, rng)
+    return FITNESS_METHODS[cfg.method].build(cfg, problem, rng)

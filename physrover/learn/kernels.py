@@ -1,47 +1,57 @@
-"""Compiled kernels of the learner (see :mod:`physrover.engine`): the policy forward pass
-(reference: ``PolicyLayout.forward``) and the intermediate critics' values and SGD updates,
-regular and inexact (reference: ``IntermediateCritics`` and ``FitnessCritic`` in
-:mod:`physrover.learn.critics`).
+"""Compiled kernels of the learner: the one implementation of the policy forward pass
+(paper Section 4.2), of the intermediate critics' values (Eq. 2) and of their updates,
+regular (Eqs. 6-8) and inexact (Eqs. 9-10), by SGD or Adam.
 
-The input and output sizes are the domain's and compile-time constants (8 observations, 2
-actions, 10 = 8 + 2 critic inputs), so the compiler unrolls those loops; hidden sizes are
-free. Arithmetic is float32 like the reference. Loops run over whole rows of contiguous
-arrays so that the compiler vectorises them; the critics keep pairs in the innermost loop
-(a transposed copy of the pairs, ``(10, N)``). Sums are accumulated in a fixed order, so a
-kernel gives the same result on every run; it differs from the reference (whose order is
-BLAS's) by float32 rounding.
+Sizes are the arrays' own: observations (n_in, from the sensor), actions (2, the domain's),
+critic inputs (n_in + 2) and hidden units. Arithmetic is float32. Loops run over whole rows
+of contiguous arrays so that the compiler vectorises them; the critics keep pairs in the
+innermost loop (a transposed copy of the pairs, ``(n_in + 2, N)``). Sums are accumulated in
+a fixed order, so a kernel gives the same result on every run. The tests compare the
+kernels with plain numpy versions (``tests/oracles.py``) and with finite differences.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from physrover.domain.sensing import OBS_DIM
-from physrover.domain.world import ACTION_DIM
-from physrover.engine import jit, jit_reassoc
-from physrover.learn.critics import PAIR_DIM
+from physrover.compiled import jit, jit_reassoc
 
 # Mini-batches are padded to a multiple of this many pairs (16 float32 lanes of AVX-512 x 4
 # interleaved, as LLVM vectorises): measured, 64 pairs take less time than 50.
 PAD_PAIRS = 64
+TILE = 16
+"""Inputs per register tile of the critics' loops (see :func:`_critic_forward`)."""
+ADAM_BETA1, ADAM_BETA2, ADAM_EPS = 0.9, 0.999, 1e-8
+"""Adam's constants (Kingma and Ba's defaults, as torch.optim.Adam)."""
+
+
+def dims(n: int) -> tuple[int, ...]:
+    """``n`` zeros: the kernels read ``len(dims)`` as a size the compiler knows, so each
+    input size (the sensor's) gets its own compiled version with its input loops unrolled
+    (what a hand-unrolled loop did for the paper's 8 observations and 10 critic inputs)."""
+    return (0,) * n
 
 
 @jit
-def policy_forward(genomes, hidden, obs, out):
-    """Actions of every rover of every team, as ``PolicyLayout.forward``.
+def policy_forward(genomes, hidden, obs, out, dims):
+    """Actions of every rover of every team (the layout of ``PolicyLayout``).
 
     Args:
-        genomes: (E, R, P) float32 genomes laid out ``W1 (8 x H) | b1 | W2 (H x 2) | b2``.
+        genomes: (E, R, P) float32 genomes laid out ``W1 (n_in x H) | b1 | W2 (H x 2) | b2``.
         hidden: H.
-        obs: (E, R, 8) float32 observations.
+        obs: (E, R, n_in) float32 observations.
         out: (E, R, 2) float32, written with the pre-activations ``relu(obs W1 + b1) W2 + b2``;
             the caller applies ``np.tanh`` (numpy's vectorised tanh is several times faster
             than calling libm's per element here).
+        dims: a tuple of n_in zeros, :func:`dims`: its length, the observation size, is a
+            compile-time constant (one compiled version per sensor size, whose input loop
+            the compiler unrolls).
     """
+    n_in = len(dims)
     n_teams, n_rovers, _ = genomes.shape
-    b1_at = OBS_DIM * hidden
+    b1_at = n_in * hidden
     w2_at = b1_at + hidden
-    b2_at = w2_at + hidden * ACTION_DIM
+    b2_at = w2_at + hidden * 2
     whole = hidden - hidden % 4
     h = np.empty(hidden, np.float32)
     for e in range(n_teams):
@@ -50,7 +60,7 @@ def policy_forward(genomes, hidden, obs, out):
             x = obs[e, r]
             for u in range(hidden):
                 a = g[b1_at + u]
-                for i in range(OBS_DIM):
+                for i in range(n_in):
                     a += x[i] * g[i * hidden + u]
                 h[u] = max(a, np.float32(0.0))
             # Output sums in four interleaved partial sums (independent chains), then the rest.
@@ -73,126 +83,248 @@ def policy_forward(genomes, hidden, obs, out):
 
 
 @jit
-def gather_trajectories(obs, act, where, out):
+def gather_trajectories(obs, act, where, out, dims):
     """``out[r, p, t] = (obs[t, e, r], act[t, e, r])`` with ``e = where[r, p]``: the (s, a)
-    pairs of policy p of rover r, which played in team e (obs (T, E, R, 8), act (T, E, R, 2),
-    where (R, k), out (R, k, T, 10))."""
+    pairs of policy p of rover r, which played in team e (obs (T, E, R, n_in), act
+    (T, E, R, 2), where (R, k), out (R, k, T, n_in + 2)); ``dims``: n_in zeros (:func:`dims`).
+    """
     n_rovers, k = where.shape
-    steps = obs.shape[0]
+    steps, n_in, n_act = obs.shape[0], len(dims), 2
     for r in range(n_rovers):
         for p in range(k):
             e = where[r, p]
             for t in range(steps):
                 row = out[r, p, t]
-                for i in range(OBS_DIM):
+                for i in range(n_in):
                     row[i] = obs[t, e, r, i]
-                for i in range(ACTION_DIM):
-                    row[OBS_DIM + i] = act[t, e, r, i]
+                for i in range(n_act):
+                    row[n_in + i] = act[t, e, r, i]
 
 
 @jit
-def _critic_forward(W1T, b1, slope, xT, z, value):
-    """Sums ``value[n] = sum_h lrelu(z[h, n])`` (N,) of one critic (W1T (H, 10), b1 (H,)) on
-    pairs xT (10, N); the pre-activations go to the rows of ``z``: (H, N) to keep them, or
-    (1, N) as scratch."""
+def _critic_forward(W1T, b1, slope, xT, z, value, dims):
+    """Sums ``value[n] = sum_h lrelu(z[h, n])`` (N,) of one critic (W1T (H, D), b1 (H,)) on
+    pairs xT (D, N); the pre-activations ``z[h, n] = b1[h] + sum_i xT[i, n] W1T[h, i]``
+    (added in the order of i) go to the rows of ``z``: (H, N) to keep them, or (1, N) as
+    scratch. ``dims``: D zeros (:func:`dims`).
+
+    Register tiling: the inputs are taken 16 at a time (one pass over the pairs per tile),
+    their weights held in scalars; D is a compile-time constant, so the compiler drops the
+    terms past D (the paper's D = 10 runs as one pass of 10 terms).
+    """
+    n_in = len(dims)
     hidden = W1T.shape[0]
     n_pairs = xT.shape[1]
-    x0, x1, x2, x3, x4 = xT[0], xT[1], xT[2], xT[3], xT[4]
-    x5, x6, x7, x8, x9 = xT[5], xT[6], xT[7], xT[8], xT[9]
     for n in range(n_pairs):
         value[n] = np.float32(0.0)
     for u in range(hidden):
         w = W1T[u]
-        w0, w1, w2, w3, w4 = w[0], w[1], w[2], w[3], w[4]
-        w5, w6, w7, w8, w9 = w[5], w[6], w[7], w[8], w[9]
         bu = b1[u]
         zu = z[u] if z.shape[0] == hidden else z[0]
-        for n in range(n_pairs):  # the 10 inputs written out: kept in registers
-            zn = (
-                bu
-                + x0[n] * w0
-                + x1[n] * w1
-                + x2[n] * w2
-                + x3[n] * w3
-                + x4[n] * w4
-                + x5[n] * w5
-                + x6[n] * w6
-                + x7[n] * w7
-                + x8[n] * w8
-                + x9[n] * w9
-            )
-            zu[n] = zn
-            value[n] += zn if zn > 0 else slope * zn
+        for i0 in range(0, n_in, TILE):
+            first, last = i0 == 0, i0 + TILE >= n_in
+            w0 = w[i0 + 0] if i0 + 0 < n_in else np.float32(0.0)
+            w1 = w[i0 + 1] if i0 + 1 < n_in else np.float32(0.0)
+            w2 = w[i0 + 2] if i0 + 2 < n_in else np.float32(0.0)
+            w3 = w[i0 + 3] if i0 + 3 < n_in else np.float32(0.0)
+            w4 = w[i0 + 4] if i0 + 4 < n_in else np.float32(0.0)
+            w5 = w[i0 + 5] if i0 + 5 < n_in else np.float32(0.0)
+            w6 = w[i0 + 6] if i0 + 6 < n_in else np.float32(0.0)
+            w7 = w[i0 + 7] if i0 + 7 < n_in else np.float32(0.0)
+            w8 = w[i0 + 8] if i0 + 8 < n_in else np.float32(0.0)
+            w9 = w[i0 + 9] if i0 + 9 < n_in else np.float32(0.0)
+            w10 = w[i0 + 10] if i0 + 10 < n_in else np.float32(0.0)
+            w11 = w[i0 + 11] if i0 + 11 < n_in else np.float32(0.0)
+            w12 = w[i0 + 12] if i0 + 12 < n_in else np.float32(0.0)
+            w13 = w[i0 + 13] if i0 + 13 < n_in else np.float32(0.0)
+            w14 = w[i0 + 14] if i0 + 14 < n_in else np.float32(0.0)
+            w15 = w[i0 + 15] if i0 + 15 < n_in else np.float32(0.0)
+            for n in range(n_pairs):
+                zn = bu if first else zu[n]
+                if i0 + 0 < n_in:
+                    zn += xT[i0 + 0, n] * w0
+                if i0 + 1 < n_in:
+                    zn += xT[i0 + 1, n] * w1
+                if i0 + 2 < n_in:
+                    zn += xT[i0 + 2, n] * w2
+                if i0 + 3 < n_in:
+                    zn += xT[i0 + 3, n] * w3
+                if i0 + 4 < n_in:
+                    zn += xT[i0 + 4, n] * w4
+                if i0 + 5 < n_in:
+                    zn += xT[i0 + 5, n] * w5
+                if i0 + 6 < n_in:
+                    zn += xT[i0 + 6, n] * w6
+                if i0 + 7 < n_in:
+                    zn += xT[i0 + 7, n] * w7
+                if i0 + 8 < n_in:
+                    zn += xT[i0 + 8, n] * w8
+                if i0 + 9 < n_in:
+                    zn += xT[i0 + 9, n] * w9
+                if i0 + 10 < n_in:
+                    zn += xT[i0 + 10, n] * w10
+                if i0 + 11 < n_in:
+                    zn += xT[i0 + 11, n] * w11
+                if i0 + 12 < n_in:
+                    zn += xT[i0 + 12, n] * w12
+                if i0 + 13 < n_in:
+                    zn += xT[i0 + 13, n] * w13
+                if i0 + 14 < n_in:
+                    zn += xT[i0 + 14, n] * w14
+                if i0 + 15 < n_in:
+                    zn += xT[i0 + 15, n] * w15
+                zu[n] = zn
+                if last:
+                    value[n] += zn if zn > 0 else slope * zn
 
 
 @jit
-def critic_values(W1T, b1, b2, slope, xT, out):
-    """``C(x) = sum_h lrelu(x W1 + b1)_h + b2`` of R critics (W1T (R, H, 10), b1 (R, H),
-    b2 (R,)) on pairs xT (R, 10, N), into (R, N) ``out``."""
+def critic_values(W1T, b1, b2, slope, xT, out, dims):
+    """``C(x) = sum_h lrelu(x W1 + b1)_h + b2`` (Eq. 2) of R critics (W1T (R, H, D), b1
+    (R, H), b2 (R,)) on pairs xT (R, D, N), into (R, N) ``out``; ``dims``: D zeros
+    (:func:`dims`)."""
     scratch = np.empty((1, xT.shape[2]), np.float32)
     for r in range(xT.shape[0]):
         value = out[r]
-        _critic_forward(W1T[r], b1[r], slope, xT[r], scratch, value)
+        _critic_forward(W1T[r], b1[r], slope, xT[r], scratch, value, dims)
         for n in range(value.shape[0]):
             value[n] += b2[r]
 
 
 @jit_reassoc
-def _weighted_grad(W1T, slope, xT, z, u_weights, dW1T, db1):
+def _weighted_grad(W1T, slope, xT, z, u_weights, dW1T, db1, dims):
     """``sum_n u_n grad C(x_n)`` of one critic for the W1 and b1 blocks, from the pairs xT
-    (10, N), their pre-activations z (H, N) and weights (N,), into dW1T (H, 10), db1 (H,).
+    (D, N), their pre-activations z (H, N) and weights (N,), into dW1T (H, D), db1 (H,);
+    ``dims``: D zeros (:func:`dims`). Register tiling as in :func:`_critic_forward`.
 
     Each entry is a sum over the N pairs; this is the one place where the compiler may
     reorder additions (vectorised partial sums), so the sums are reproducible on a machine
     but their last bits depend on its vector width.
     """
+    n_in = len(dims)
     hidden = W1T.shape[0]
     n_pairs = xT.shape[1]
     one_minus = np.float32(1.0) - slope
-    x0, x1, x2, x3, x4 = xT[0], xT[1], xT[2], xT[3], xT[4]
-    x5, x6, x7, x8, x9 = xT[5], xT[6], xT[7], xT[8], xT[9]
     for u in range(hidden):
         zu = z[u]
-        s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = s9 = sb = np.float32(0.0)
-        for n in range(n_pairs):
-            # lrelu'(z) = slope + (1 - slope) [z > 0], times the pair's weight
-            g = ((one_minus if zu[n] > 0 else np.float32(0.0)) + slope) * u_weights[n]
-            sb += g
-            s0 += x0[n] * g
-            s1 += x1[n] * g
-            s2 += x2[n] * g
-            s3 += x3[n] * g
-            s4 += x4[n] * g
-            s5 += x5[n] * g
-            s6 += x6[n] * g
-            s7 += x7[n] * g
-            s8 += x8[n] * g
-            s9 += x9[n] * g
-        db1[u] = sb
-        d = dW1T[u]
-        d[0], d[1], d[2], d[3], d[4] = s0, s1, s2, s3, s4
-        d[5], d[6], d[7], d[8], d[9] = s5, s6, s7, s8, s9
+        for i0 in range(0, n_in, TILE):
+            s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = s9 = s10 = s11 = s12 = s13 = s14 = s15 = (
+                sb
+            ) = np.float32(0.0)
+            for n in range(n_pairs):
+                # lrelu'(z) = slope + (1 - slope) [z > 0], times the pair's weight
+                g = ((one_minus if zu[n] > 0 else np.float32(0.0)) + slope) * u_weights[n]
+                sb += g
+                if i0 + 0 < n_in:
+                    s0 += xT[i0 + 0, n] * g
+                if i0 + 1 < n_in:
+                    s1 += xT[i0 + 1, n] * g
+                if i0 + 2 < n_in:
+                    s2 += xT[i0 + 2, n] * g
+                if i0 + 3 < n_in:
+                    s3 += xT[i0 + 3, n] * g
+                if i0 + 4 < n_in:
+                    s4 += xT[i0 + 4, n] * g
+                if i0 + 5 < n_in:
+                    s5 += xT[i0 + 5, n] * g
+                if i0 + 6 < n_in:
+                    s6 += xT[i0 + 6, n] * g
+                if i0 + 7 < n_in:
+                    s7 += xT[i0 + 7, n] * g
+                if i0 + 8 < n_in:
+                    s8 += xT[i0 + 8, n] * g
+                if i0 + 9 < n_in:
+                    s9 += xT[i0 + 9, n] * g
+                if i0 + 10 < n_in:
+                    s10 += xT[i0 + 10, n] * g
+                if i0 + 11 < n_in:
+                    s11 += xT[i0 + 11, n] * g
+                if i0 + 12 < n_in:
+                    s12 += xT[i0 + 12, n] * g
+                if i0 + 13 < n_in:
+                    s13 += xT[i0 + 13, n] * g
+                if i0 + 14 < n_in:
+                    s14 += xT[i0 + 14, n] * g
+                if i0 + 15 < n_in:
+                    s15 += xT[i0 + 15, n] * g
+            if i0 == 0:
+                db1[u] = sb
+            if i0 + 0 < n_in:
+                dW1T[u, i0 + 0] = s0
+            if i0 + 1 < n_in:
+                dW1T[u, i0 + 1] = s1
+            if i0 + 2 < n_in:
+                dW1T[u, i0 + 2] = s2
+            if i0 + 3 < n_in:
+                dW1T[u, i0 + 3] = s3
+            if i0 + 4 < n_in:
+                dW1T[u, i0 + 4] = s4
+            if i0 + 5 < n_in:
+                dW1T[u, i0 + 5] = s5
+            if i0 + 6 < n_in:
+                dW1T[u, i0 + 6] = s6
+            if i0 + 7 < n_in:
+                dW1T[u, i0 + 7] = s7
+            if i0 + 8 < n_in:
+                dW1T[u, i0 + 8] = s8
+            if i0 + 9 < n_in:
+                dW1T[u, i0 + 9] = s9
+            if i0 + 10 < n_in:
+                dW1T[u, i0 + 10] = s10
+            if i0 + 11 < n_in:
+                dW1T[u, i0 + 11] = s11
+            if i0 + 12 < n_in:
+                dW1T[u, i0 + 12] = s12
+            if i0 + 13 < n_in:
+                dW1T[u, i0 + 13] = s13
+            if i0 + 14 < n_in:
+                dW1T[u, i0 + 14] = s14
+            if i0 + 15 < n_in:
+                dW1T[u, i0 + 15] = s15
 
 
 @jit
-def critic_sgd(W1T, b1, b2, slope, lr, items, feedback, index, batch, use_max):
-    """One generation of mini-batch gradient steps of R critics, in place; both update kinds.
+def _apply(param, direction, lr, adam, m, v, c1, c2):
+    """``param += lr * direction`` (SGD, Eqs. 7 / 9), or Adam's step on it with moments
+    ``m``, ``v`` and bias corrections ``c1 = 1 - beta1^t``, ``c2 = 1 - beta2^t``; flat
+    float32 arrays of one size (m, v unused for SGD)."""
+    if not adam:
+        for j in range(param.shape[0]):
+            param[j] += lr * direction[j]
+        return
+    b1, b2 = np.float32(ADAM_BETA1), np.float32(ADAM_BETA2)
+    for j in range(param.shape[0]):
+        d = direction[j]
+        m[j] = m[j] * b1 + (np.float32(1.0) - b1) * d
+        v[j] = v[j] * b2 + (np.float32(1.0) - b2) * d * d
+        param[j] += lr * (m[j] / c1) / (np.sqrt(v[j] / c2) + np.float32(ADAM_EPS))
+
+
+@jit
+def critic_update(
+    W1T, b1, b2, slope, lr, items, feedback, index, batch, use_max, adam, moments, step, dims
+):
+    """One generation of mini-batch updates of R critics, in place; both update kinds.
 
     Critic r's mini-batches are the replay entries ``items[r, index[r]]`` (items
-    (R, C, T, 10): entries of T state-action pairs, feedback (R, C), index (R, M)),
+    (R, C, T, D): entries of T state-action pairs, feedback (R, C), index (R, M)),
     ``M // batch`` of them one after the other. Per entry the critic's values of its T pairs
     are aggregated, by their mean or (``use_max``) their maximum (the first, as
     ``np.argmax``): ``F = agg_t C(x_t)``; with ``delta = f - F`` (Eq. 8, or Eq. 10 for T = 1)
-    the critic takes the step ``w += lr * sum_entries delta * dF/dw`` after the whole
-    mini-batch, as ``FitnessCritic.update`` does with SGD:
+    the critic takes the step along ``sum_entries delta * dF/dw`` after the whole mini-batch:
 
     - regular updates (Eqs. 6-8): entries are trajectories (T = steps);
     - inexact updates (Eqs. 9-10): entries are single pairs (T = 1, where both
       aggregations are the value itself and the arithmetic is exactly the per-pair rule).
 
-    Critics are independent, so each runs all its mini-batches in turn. Returns the mean of
+    The step is plain (``w += lr * direction``, the paper's) or, with ``adam``, Adam's on the
+    same gradient; ``moments`` (R, 2, H * (D + 1) + 1) holds Adam's m and v of each critic's
+    parameters flattened as ``W1T | b1 | b2``, and ``step`` the steps taken before this call
+    (Adam's t, shared by all critics); ``dims``: D zeros (:func:`dims`). Critics are
+    independent, so each runs all its mini-batches in turn. Returns the mean of
     ``delta**2`` over all critics and entries (float64).
     """
+    n_in = len(dims)
     n_critics, n_items = index.shape
     steps = items.shape[2]
     hidden = W1T.shape[1]
@@ -201,15 +333,17 @@ def critic_sgd(W1T, b1, b2, slope, lr, items, feedback, index, batch, use_max):
     # Pairs are padded to a multiple of PAD_PAIRS with zero inputs and zero weight: they add
     # exact zeros to the gradient sums, and the pair loops get whole vector iterations.
     padded = -(-n_pairs // PAD_PAIRS) * PAD_PAIRS
-    xT = np.zeros((PAIR_DIM, padded), np.float32)
-    drawn = np.empty((n_items, steps, PAIR_DIM), np.float32)  # one critic's draws at once
+    xT = np.zeros((n_in, padded), np.float32)
+    drawn = np.empty((n_items, steps, n_in), np.float32)  # one critic's draws at once
     drawn_feedback = np.empty(n_items, np.float32)
     z = np.empty((hidden, padded), np.float32)
     value = np.empty(padded, np.float32)
     weight = np.zeros(padded, np.float32)  # dF/dC(x_n) * delta of the pair's entry
-    dW1T = np.empty((hidden, PAIR_DIM), np.float32)
-    db1 = np.empty(hidden, np.float32)
-    inv_steps = np.float32(1.0 / steps)  # the mean's dF/dC, as the reference's float32 1/T
+    n_w = hidden * n_in
+    grad = np.empty(n_w + hidden + 1, np.float32)  # dW1T | db1 | db2, flat
+    dW1T = grad[:n_w].reshape(hidden, n_in)
+    db1 = grad[n_w : n_w + hidden]
+    inv_steps = np.float32(1.0 / steps)  # the mean's dF/dC, float32 1/T
     sq_sum = 0.0
     for r in range(n_critics):
         W, b = W1T[r], b1[r]
@@ -217,14 +351,14 @@ def critic_sgd(W1T, b1, b2, slope, lr, items, feedback, index, batch, use_max):
             slot = index[r, m]
             drawn_feedback[m] = feedback[r, slot]
             for t in range(steps):
-                for i in range(PAIR_DIM):
+                for i in range(n_in):
                     drawn[m, t, i] = items[r, slot, t, i]
-        for first in range(0, n_batches * batch, batch):
+        for number, first in enumerate(range(0, n_batches * batch, batch)):
             for j in range(batch):
                 for t in range(steps):
-                    for i in range(PAIR_DIM):
+                    for i in range(n_in):
                         xT[i, j * steps + t] = drawn[first + j, t, i]
-            _critic_forward(W, b, slope, xT, z, value)
+            _critic_forward(W, b, slope, xT, z, value, dims)
             db2 = np.float32(0.0)
             for j in range(batch):
                 at = j * steps
@@ -248,10 +382,15 @@ def critic_sgd(W1T, b1, b2, slope, lr, items, feedback, index, batch, use_max):
                     else:
                         weight[at + t] = delta * inv_steps
                     db2 += weight[at + t]
-            _weighted_grad(W, slope, xT, z, weight, dW1T, db1)
-            for u in range(hidden):  # Eq. 7 / Eq. 9: the step, after the whole mini-batch
-                for i in range(PAIR_DIM):
-                    W[u, i] += lr * dW1T[u, i]
-                b[u] += lr * db1[u]
-            b2[r] += lr * db2
+            _weighted_grad(W, slope, xT, z, weight, dW1T, db1, dims)
+            grad[n_w + hidden] = db2
+            # Eq. 7 / Eq. 9: the step, after the whole mini-batch
+            t_adam = step + number + 1
+            c1 = np.float32(1.0 - ADAM_BETA1**t_adam)
+            c2 = np.float32(1.0 - ADAM_BETA2**t_adam)
+            m_r, v_r = moments[r, 0], moments[r, 1]
+            _apply(W.reshape(-1), dW1T.reshape(-1), lr, adam, m_r[:n_w], v_r[:n_w], c1, c2)
+            _apply(b, db1, lr, adam, m_r[n_w : n_w + hidden], v_r[n_w : n_w + hidden], c1, c2)
+            _apply(b2[r : r + 1], grad[n_w + hidden :], lr, adam, m_r[n_w + hidden :],
+                   v_r[n_w + hidden :], c1, c2)  # fmt: skip
     return sq_sum / max(n_critics * n_batches * batch, 1)

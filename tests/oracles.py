@@ -1,0 +1,430 @@
+"""Oracles: the domain's equations as short numpy array code, written from the paper.
+
+This was physrover 0.1's "numpy reference engine". The package now has one implementation of
+each equation (the compiled kernels); this module is what the tests compare it with, so a
+change to a kernel is checked against code that reads like the paper and does not share it.
+
+- relations (Eq. 14 and quadrants), sensing (Eqs. 15-16), idealised motion (Section 4.1.2),
+  scoring (Eqs. 11-13) and D (Eq. 1), each as in the sections below.
+
+The quadrant convention is the package's (``physrover/domain/sensing.py``): 0 behind-right
+[-180, -90) deg, 1 front-right [-90, 0), 2 front-left [0, 90), 3 behind-left [90, 180), a
+bearing on a boundary in the quadrant that starts there. Relations here are float32 (the
+kernels compute in float64), so observations agree to float32 rounding.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+OBS_DIM = 8
+
+# ----------------------------------------------------------------------------------------------
+# Relations: Eq. 14 and quadrants
+# ----------------------------------------------------------------------------------------------
+
+DTYPE = np.float32
+
+
+@dataclass(frozen=True)
+class Relations:
+    """Relations of every rover to every object of its team at one step.
+
+    Attributes:
+        delta_sq: (E, R, N) float32 squared bounded distance ``max(||p_i - p_j||, d_min)^2``
+            (Eq. 14), world units squared; objects are the R rovers, then the K POIs.
+        quadrant: (E, R, N) uint8 quadrant of each object in the rover's frame (module doc).
+    """
+
+    delta_sq: np.ndarray
+    quadrant: np.ndarray
+
+
+def quadrants(forward: np.ndarray, left: np.ndarray) -> np.ndarray:
+    """Quadrant index (uint8) of offsets given in the rover's frame; see the module docstring."""
+    upper = left > 0  # bearing in [0, pi) ...
+    upper |= (left == 0) & (forward >= 0)  # ... including dead ahead and the rover's own spot
+    behind = forward < 0  # in the upper half: bearing in [pi/2, pi) ...
+    behind |= (forward == 0) & (left > 0)  # ... including dead left
+    # Bit 1 is the half, bit 0 the quadrant within it; boolean algebra instead of np.where,
+    # which branches per element and costs ten times more on mixed signs.
+    low = (upper & behind) | (~upper & (forward >= 0))
+    return (upper.view(np.uint8) << 1) | low.view(np.uint8)
+
+
+def relate(
+    rover_positions: np.ndarray,
+    rover_headings: np.ndarray,
+    poi_positions: np.ndarray,
+    d_min: float,
+) -> Relations:
+    """Relations of each rover to all rovers and POIs of its team.
+
+    Args:
+        rover_positions: (E, R, 2) world positions.
+        rover_headings: (E, R) headings, radians counter-clockwise from the world x axis.
+        poi_positions: (E, K, 2) world positions.
+        d_min: lower bound of the distance metric (Eq. 14), world units.
+    """
+    objects = np.concatenate([rover_positions, poi_positions], axis=1).astype(DTYPE)
+    # Coordinates as contiguous (E, R) / (E, N) arrays: broadcasting over a trailing axis of
+    # size 2 is several times slower than these plain outer differences.
+    ox, oy = np.ascontiguousarray(objects[..., 0]), np.ascontiguousarray(objects[..., 1])
+    n_rovers = rover_positions.shape[1]
+    rx, ry = ox[:, :n_rovers], oy[:, :n_rovers]
+    dx = ox[:, None, :] - rx[:, :, None]  # (E, R, N)
+    dy = oy[:, None, :] - ry[:, :, None]
+    headings = rover_headings.astype(DTYPE)[..., None]
+    cos_h, sin_h = np.cos(headings), np.sin(headings)
+    forward = cos_h * dx
+    forward += sin_h * dy
+    left = cos_h * dy
+    left -= sin_h * dx
+    delta_sq = dx * dx
+    delta_sq += dy * dy
+    np.maximum(delta_sq, DTYPE(d_min * d_min), out=delta_sq)
+    return Relations(delta_sq=delta_sq, quadrant=quadrants(forward, left))
+
+
+# ----------------------------------------------------------------------------------------------
+# Sensing: Eqs. 15-16
+# ----------------------------------------------------------------------------------------------
+
+
+def numerators(n_rovers: int, poi_values: np.ndarray) -> np.ndarray:
+    """(E, R, N) numerator of each object's sensing term; fixed for an episode.
+
+    1 for the other rovers (Eq. 15), 0 for the rover itself, V_k for POI k (Eq. 16).
+
+    Args:
+        n_rovers: R.
+        poi_values: (E, K) POI values.
+    """
+    n_teams, n_pois = poi_values.shape
+    out = np.empty((n_teams, n_rovers, n_rovers + n_pois))
+    out[:, :, :n_rovers] = 1.0 - np.eye(n_rovers)
+    out[:, :, n_rovers:] = poi_values[:, None, :]
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _cell_base(n_teams: int, n_rovers: int, n_objects: int) -> np.ndarray:
+    """(E, R, N) index of channel 0 of each rover's observation, +4 for POI objects."""
+    row = np.arange(n_teams * n_rovers).reshape(n_teams, n_rovers, 1) * OBS_DIM
+    poi_offset = np.where(np.arange(n_objects) < n_rovers, 0, 4)
+    base = row + poi_offset
+    base.flags.writeable = False
+    return base
+
+
+def sense(relations: Relations, numerator: np.ndarray) -> np.ndarray:
+    """Observations of all rovers of all teams (Eqs. 15-16).
+
+    Args:
+        relations: rover-to-object relations, N = R + K objects (rovers first).
+        numerator: (E, R, N) from :func:`numerators`.
+
+    Returns:
+        (E, R, 8) float64 observations.
+    """
+    n_teams, n_rovers, n_objects = relations.delta_sq.shape
+    term = numerator / relations.delta_sq
+    # Scatter-add every term into its (team, rover, channel) cell with one bincount; the
+    # channel is the quadrant, plus 4 for POIs.
+    cell = _cell_base(n_teams, n_rovers, n_objects) + relations.quadrant
+    obs = np.bincount(cell.ravel(), weights=term.ravel(), minlength=n_teams * n_rovers * OBS_DIM)
+    return obs.reshape(n_teams, n_rovers, OBS_DIM)
+
+
+def observe(
+    rover_positions: np.ndarray,
+    rover_headings: np.ndarray,
+    poi_positions: np.ndarray,
+    poi_values: np.ndarray,
+    d_min: float,
+) -> np.ndarray:
+    """(E, R, 8) observations straight from positions (E, R, 2), headings (E, R), POI
+    positions (E, K, 2) and values (E, K); see :func:`sense`."""
+    relations = relate(rover_positions, rover_headings, poi_positions, d_min)
+    return sense(relations, numerators(rover_positions.shape[1], poi_values))
+
+
+# ----------------------------------------------------------------------------------------------
+# Idealised motion (Section 4.1.2)
+# ----------------------------------------------------------------------------------------------
+
+
+def commanded_move(actions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's move (Fig. 3): (E, R, 2) rover-frame commands (forward, left) rotated into
+    the world by the heading; the new heading is the move's direction, unchanged for a zero
+    command. Returns the (E, R, 2) move and the (E, R) new headings. A plain loop."""
+    move = np.empty(actions.shape)
+    new_headings = np.array(headings, dtype=np.float64)
+    for index in np.ndindex(headings.shape):
+        fwd, left = (float(a) for a in actions[index])
+        c, s = math.cos(headings[index]), math.sin(headings[index])
+        move[index] = (c * fwd - s * left, s * fwd + c * left)
+        if fwd != 0.0 or left != 0.0:
+            new_headings[index] = math.atan2(move[index][1], move[index][0])
+    return move, new_headings
+
+
+class IdealMotion:
+    """The idealised kinematics as a stateless model: ``step`` moves every rover."""
+
+    def step(
+        self, positions: np.ndarray, headings: np.ndarray, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """New (E, R, 2) positions and (E, R) headings after clipped (E, R, 2) commands."""
+        move, new_headings = commanded_move(actions, headings)
+        return positions + move, new_headings
+
+
+# ----------------------------------------------------------------------------------------------
+# Scoring: Eqs. 11-13 and D (Eq. 1)
+# ----------------------------------------------------------------------------------------------
+
+
+def in_range(delta_sq_poi: np.ndarray, d_cap: float) -> np.ndarray:
+    """Eq. 13: (E, R, K) bounded squared rover-POI distances -> (E, R, K) bool."""
+    return delta_sq_poi <= d_cap * d_cap
+
+
+def score_history(in_range_history: np.ndarray, poi_values: np.ndarray, n_req: int) -> dict:
+    """Scores of whole episodes from a (T, E, R, K) in-range history (Eqs. 11-12, 1).
+
+    POI k counts for G if at some step at least ``n_req`` rovers were in range of it; for
+    G(z_-i), the same with rover i removed from every step. Returns G (E,), D (E, R),
+    capture_step (E, K) (first step of capture, -1 if none) and captured_without (E, R, K).
+    """
+    history = np.asarray(in_range_history, dtype=np.int64)
+    n_steps, n_teams, n_rovers, n_pois = history.shape
+    values = np.broadcast_to(np.asarray(poi_values, dtype=np.float64), (n_teams, n_pois))
+    count = history.sum(axis=2)  # (T, E, K)
+    captured_at = count >= n_req
+    captured = captured_at.any(axis=0)
+    capture_step = np.where(captured, captured_at.argmax(axis=0), -1)
+    without = ((count[:, :, None, :] - history) >= n_req).any(axis=0)  # (E, R, K)
+    G = (values * captured).sum(-1)
+    D = G[:, None] - (values[:, None, :] * without).sum(-1)
+    return {"G": G, "D": D, "capture_step": capture_step, "captured_without": without}
+
+
+def score_episode(
+    in_range_history: np.ndarray, poi_values: np.ndarray, n_req: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """G (E,) and D (E, R) of whole episodes from a (T, E, R, K) in-range history."""
+    scores = score_history(in_range_history, poi_values, n_req)
+    return scores["G"], scores["D"]
+
+
+# ----------------------------------------------------------------------------------------------
+# Policies (Section 4.2): n_in -> hidden -> 2, ReLU then tanh
+# ----------------------------------------------------------------------------------------------
+
+
+def policy_actions(genomes: np.ndarray, hidden: int, obs: np.ndarray) -> np.ndarray:
+    """(E, R, 2) float32 actions of (E, R, P) genomes (layout ``W1 (n_in x H) | b1 | W2 |
+    b2``) on (E, R, n_in) observations, by matrix products."""
+    layout = _PolicyWeights(hidden, obs.shape[-1])
+    return layout.forward(layout.split(genomes), obs)
+
+
+class _PolicyWeights:
+    def __init__(self, hidden, n_in, n_out=2):
+        self.n_in, self.hidden, self.n_out = n_in, hidden, n_out
+        sizes = [n_in * hidden, hidden, hidden * n_out, n_out]
+        self.bounds = np.concatenate([[0], np.cumsum(sizes)])
+
+    def split(self, genomes: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(W1, b1, W2, b2) of (..., P) genomes as contiguous arrays, for repeated forwards."""
+        b, batch = self.bounds, genomes.shape[:-1]
+        return (
+            np.ascontiguousarray(genomes[..., b[0] : b[1]].reshape(*batch, self.n_in, self.hidden)),
+            np.ascontiguousarray(genomes[..., b[1] : b[2]]),
+            np.ascontiguousarray(
+                genomes[..., b[2] : b[3]].reshape(*batch, self.hidden, self.n_out)
+            ),
+            np.ascontiguousarray(genomes[..., b[3] : b[4]]),
+        )
+
+    def forward(self, weights: tuple[np.ndarray, ...], obs: np.ndarray) -> np.ndarray:
+        """Actions from :meth:`split` weights of shape (E, R, ...) and (E, R, 8) observations:
+        (E, R, 2) float32 in (-1, 1)."""
+        w1, b1, w2, b2 = weights
+        h = (obs[..., None, :].astype(np.float32) @ w1)[..., 0, :]
+        h += b1
+        np.maximum(h, 0.0, out=h)
+        out = (h[..., None, :] @ w2)[..., 0, :]
+        out += b2
+        return np.tanh(out, out=out)
+
+
+# ----------------------------------------------------------------------------------------------
+# Critics (Section 3): values (Eq. 2), aggregation (Eqs. 3-4), updates (Eqs. 6-10)
+# ----------------------------------------------------------------------------------------------
+
+
+def aggregate(values: np.ndarray, how: str) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 3 (max) or Eq. 4 (mean) over the last axis, and its derivative by each value:
+    ``1/T`` for the mean, 1 at the first maximum and 0 elsewhere for the max."""
+    flat = values.reshape(-1, values.shape[-1])
+    agg = np.empty(flat.shape[0], dtype=values.dtype)
+    grad = np.zeros(flat.shape, dtype=values.dtype)
+    for row in range(flat.shape[0]):
+        if how == "mean":
+            agg[row] = flat[row].mean()
+            grad[row] = 1.0 / flat.shape[1]
+        else:
+            best = 0
+            for t in range(1, flat.shape[1]):
+                if flat[row, t] > flat[row, best]:
+                    best = t
+            agg[row], grad[row, best] = flat[row, best], 1.0
+    return agg.reshape(values.shape[:-1]), grad.reshape(values.shape)
+
+
+class CriticOracle:
+    """The critics of :class:`physrover.learn.critics.FitnessCritic` in numpy: same
+    parameters (copied from ``fc``), values by matrix products, gradients by the formula of
+    the critics module, mini-batch steps one after another (SGD or Adam)."""
+
+    def __init__(self, fc):
+        self.settings = fc.settings
+        self.W1, self.b1, self.b2 = (p.copy() for p in fc.critics.params())
+        self.slope = np.float32(fc.settings.slope)
+        self.optimizer = Optimizer(
+            [self.W1, self.b1, self.b2], fc.settings.lr, fc.settings.optimizer
+        )
+
+    def __call__(self, x):
+        """C for (R, N, D) pairs -> (R, N)."""
+        return self._output(x, self._hidden(x))
+
+    def _hidden(self, x: np.ndarray) -> np.ndarray:
+        z = x @ self.W1  # (R, N, H) pre-activations
+        z += self.b1[:, None, :]
+        return z
+
+    def _output(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """C from the pairs and their pre-activations (``z`` is overwritten).
+
+        ``sum_h lrelu(z_h) = slope * sum_h z_h + (1 - slope) * sum_h relu(z_h)``, and the
+        linear sum is ``x . sum_h W1[:, h] + sum_h b1[h]``: one pass over z instead of three.
+        """
+        linear = (x @ self.W1.sum(-1)[..., None])[..., 0] + self.b1.sum(-1)[:, None]
+        relu_sum = np.maximum(z, 0.0, out=z).sum(-1)
+        return self.slope * linear + (1 - self.slope) * relu_sum + self.b2[:, None]
+
+    def values_and_slopes(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """C(x) (R, N) and lrelu'(z) (R, N, H) from one forward pass."""
+        z = self._hidden(x)
+        g = (z > 0).astype(np.float32)  # lrelu'(z) = slope + (1 - slope) [z > 0]
+        g *= 1 - self.slope
+        g += self.slope
+        return self._output(x, z), g
+
+    def weighted_grad(self, x: np.ndarray, u: np.ndarray, g: np.ndarray | None = None):
+        """``sum_n u_n grad_w C(x_n)`` for (R, N, 10) pairs and (R, N) weights, per critic;
+        ``g`` (from :meth:`values_and_slopes`) is reused, and overwritten, when given."""
+        if g is None:
+            g = self.values_and_slopes(x)[1]
+        g *= u[..., None].astype(np.float32)  # (R, N, H): u_n dC(x_n)/db1
+        return [np.swapaxes(x, 1, 2) @ g, g.sum(1), u.sum(1)]
+
+    def errors_and_directions(
+        self, items: np.ndarray, feedback: np.ndarray
+    ) -> tuple[np.ndarray, list[np.ndarray]]:
+        """delta (R, B) and the update direction ``sum_k delta_k grad`` (Eq. 7 or Eq. 9)."""
+        if self.settings.update == "inexact":
+            values, g = self.values_and_slopes(items)
+            delta = feedback - values  # Eq. 10
+            return delta, self.weighted_grad(items, delta, g)
+        n_rovers, batch, steps, _ = items.shape
+        pairs = items.reshape(n_rovers, batch * steps, items.shape[-1])
+        values, g = self.values_and_slopes(pairs)
+        F, dF = aggregate(values.reshape(n_rovers, batch, steps), self.settings.aggregation)
+        delta = feedback - F  # Eq. 8
+        u = (delta[..., None] * dF).reshape(n_rovers, batch * steps)
+        return delta, self.weighted_grad(pairs, u, g)
+
+    def update_with(self, all_items, all_feedback):
+        """The mini-batches of (R, M, ...) items and (R, M) feedback, in order; mean delta^2."""
+        s = self.settings
+        losses = []
+        for b in range(s.batches):
+            part = slice(b * s.batch, (b + 1) * s.batch)
+            items, feedback = all_items[:, part], all_feedback[:, part]
+            delta, directions = self.errors_and_directions(items, feedback)
+            self.optimizer.step(directions)
+            losses.append(np.mean(delta**2))
+        return float(np.mean(losses))
+
+
+class Optimizer:
+    """Ascent steps ``w += lr * d`` (plain, Eq. 6) or Adam on the descent gradient ``-d``."""
+
+    def __init__(self, params: list[np.ndarray], lr: float, kind: str = "sgd"):
+        self.params, self.lr, self.kind = params, lr, kind
+        self.t = 0
+        self.m = [np.zeros_like(p) for p in params]
+        self.v = [np.zeros_like(p) for p in params]
+
+    def step(self, directions: list[np.ndarray]) -> None:
+        if self.kind == "sgd":
+            for p, d in zip(self.params, directions, strict=True):
+                p += self.lr * d
+            return
+        b1, b2, eps = 0.9, 0.999, 1e-8
+        self.t += 1
+        for p, d, m, v in zip(self.params, directions, self.m, self.v, strict=True):
+            m *= b1
+            m += (1 - b1) * d
+            v *= b2
+            v += (1 - b2) * d * d
+            p += self.lr * (m / (1 - b1**self.t)) / (np.sqrt(v / (1 - b2**self.t)) + eps)
+
+
+# ----------------------------------------------------------------------------------------------
+# A whole episode, recomputed from a world's records
+# ----------------------------------------------------------------------------------------------
+
+
+def replay(world, commands):
+    """Recompute an episode of a compiled ``RoverWorld`` from its records with the oracles.
+
+    Starting from the world's state after reset (``position_history[0]``), the idealised
+    motion is replayed from the (T, E, R, 2) ``commands`` given to the world (clipped as
+    the world clips them; the world records them as float32); observations and scores are
+    recomputed from the world's own position and heading histories (so a physical episode,
+    moved by pymunk, is checked too). Returns a dict of positions (T + 1, E, R, 2),
+    headings, observations (T, E, R, 8), G (E,), D (E, R), capture_step (E, K) and
+    captured_without (E, R, K).
+    """
+    cfg, t = world.config, world.t
+    positions = [world.position_history[0]]
+    headings = [world.heading_history[0]]
+    motion = IdealMotion()
+    for step in range(t):
+        action = np.clip(commands[step], -1.0, 1.0, dtype=np.float64)
+        p, h = motion.step(positions[-1], headings[-1], action)
+        positions.append(p)
+        headings.append(h)
+    numerator = numerators(world.n_rovers, world.poi_values)
+    observations, ranges = [], []
+    for step in range(t + 1):
+        rel = relate(world.position_history[step], world.heading_history[step],
+                     world.poi_positions, cfg.d_min)  # fmt: skip
+        ranges.append(in_range(rel.delta_sq[:, :, world.n_rovers :], cfg.d_cap))
+        observations.append(sense(rel, numerator).astype(np.float32))
+    scores = score_history(np.stack(ranges), world.poi_values, cfg.n_req)
+    return {
+        "positions": np.stack(positions),
+        "headings": np.stack(headings),
+        "observations": np.stack(observations[: cfg.steps]),
+        **scores,
+    }
