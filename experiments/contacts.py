@@ -1,0 +1,89 @@
+"""How hard are the physical model's contacts? Pass-throughs and overlaps at step ends.
+
+    python experiments/contacts.py [--set FIELD=VALUE ...]
+
+Three cases, each under the given config (default: physics with collisions, the defaults):
+
+- head-on: two rovers driving at each other at full command, started 6.0 to 7.0 apart (41
+  distances, so the impact falls at every phase of a step): how many pass through each
+  other, and the worst overlap at a step end;
+- crowd: 15 rovers from the spawn disc, all driving forward at full command with random
+  lateral components, 50 steps, seeds 0-19: worst and median overlap at step ends (pairs in
+  contact);
+- pushing: two rovers started touching, pushing into each other for 30 steps: the overlap
+  at the end (steady contact).
+
+Overlap is ``max(0, r_i + r_j - distance) / (r_i + r_j)``: a fraction of a diameter.
+The time per step is ``physrover bench world --motion physics``'s job.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from physrover.config import DomainConfig, parse_override
+from physrover.domain.physics import pair_overlaps as overlaps
+from physrover.envs import RoverVectorEnv
+
+
+def head_on(config: DomainConfig) -> dict:
+    distances = np.linspace(6.0, 7.0, 41)
+    cfg = config.replace(n_rovers=2, n_req=1, steps=12)
+    env = RoverVectorEnv(len(distances), config=cfg)
+    start = np.zeros((len(distances), 2, 2))
+    start[:, 0, 0], start[:, 1, 0] = -distances / 2, distances / 2
+    env.reset(seed=0, options={"rover_positions": start, "rover_headings": [0.0, np.pi]})
+    worst, crossed = 0.0, np.zeros(len(distances), dtype=bool)
+    for _ in range(cfg.steps):
+        _, _, _, _, info = env.step(np.tile([1.0, 0.0], (len(distances), 2, 1)))
+        pos = info["rover_positions"]
+        crossed |= pos[:, 0, 0] > pos[:, 1, 0]
+        worst = max(worst, overlaps(pos, cfg.rover_radius).max())
+    return {"pass_throughs": int(crossed.sum()), "cases": len(distances), "worst": worst}
+
+
+def crowd(config: DomainConfig, seeds: int = 20) -> dict:
+    cfg = config.replace(n_rovers=15, steps=50)
+    env = RoverVectorEnv(seeds, config=cfg)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    seen = []
+    for _ in range(cfg.steps):
+        action = np.stack([np.ones((seeds, 15)), rng.uniform(-1, 1, (seeds, 15))], axis=-1)
+        _, _, _, _, info = env.step(action)
+        seen.append(overlaps(info["rover_positions"], cfg.rover_radius))
+    seen = np.concatenate(seen, axis=None)
+    touching = seen[seen > 0]
+    median = float(np.median(touching)) if touching.size else 0.0
+    return {"worst": float(seen.max()), "median_in_contact": median}
+
+
+def pushing(config: DomainConfig) -> dict:
+    cfg = config.replace(n_rovers=2, n_req=1, steps=30)
+    env = RoverVectorEnv(1, config=cfg)
+    r = cfg.rover_radius
+    env.reset(seed=0, options={"rover_positions": [(-r, 0.0), (r, 0.0)],
+                               "rover_headings": [0.0, np.pi]})  # fmt: skip
+    for _ in range(cfg.steps):
+        _, _, _, _, info = env.step(np.tile([1.0, 0.0], (1, 2, 1)))
+    return {"steady": float(overlaps(info["rover_positions"], r).max())}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
+    args = parser.parse_args()
+    fields = dict(parse_override(text) for text in args.set)
+    config = DomainConfig(motion="physics", collisions=True).replace(**fields)
+    h, c, p = head_on(config), crowd(config), pushing(config)
+    print(
+        f"head-on: {h['pass_throughs']}/{h['cases']} pass through, worst overlap "
+        f"{100 * h['worst']:.0f}%; crowd: worst {100 * c['worst']:.0f}%, median in contact "
+        f"{100 * c['median_in_contact']:.1f}%; pushing: {100 * p['steady']:.1f}%"
+    )
+
+
+if __name__ == "__main__":
+    main()
