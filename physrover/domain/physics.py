@@ -60,20 +60,14 @@ import pymunk
 import pymunk.batch as pb
 
 from physrover.config import DomainConfig
-from physrover.domain.kernels import speculative_contacts
+from physrover.domain.physics_kernels import control, setpoints, speculative_contacts, wrap_angles
 
 _ROVER = 0b01
 _WALL = 0b10
 _STATE = pb.BodyFields.POSITION | pb.BodyFields.ANGLE  # 3 floats per body: x, y, angle
 _MOTION = pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY  # vx, vy, w
 _ALL = _STATE | _MOTION  # x, y, angle, vx, vy, w
-_ANGLE_MOTION = pb.BodyFields.ANGLE | _MOTION  # angle, vx, vy, w
 _FORCES = pb.BodyFields.FORCE | pb.BodyFields.TORQUE  # fx, fy, torque
-
-
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
-    """Angles wrapped to [-pi, pi)."""
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def separate(
@@ -126,29 +120,6 @@ def pair_overlaps(positions: np.ndarray, radius: float) -> np.ndarray:
     dist = np.sqrt((d**2).sum(-1))
     i, j = np.triu_indices(positions.shape[1], 1)
     return np.maximum(0.0, 2 * radius - dist[:, i, j]) / (2 * radius)
-
-
-def body_to_world(vectors: np.ndarray, headings: np.ndarray) -> np.ndarray:
-    """Rotate (E, R, 2) vectors from each rover's frame into the world frame."""
-    cos_h, sin_h = np.cos(headings), np.sin(headings)
-    fwd, left = vectors[..., 0], vectors[..., 1]
-    out = np.empty(vectors.shape)
-    out[..., 0] = cos_h * fwd - sin_h * left
-    out[..., 1] = sin_h * fwd + cos_h * left
-    return out
-
-
-def commanded_move(actions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The world-frame vector of (E, R, 2) rover-frame commands and its direction.
-
-    Returns the (E, R, 2) vector and the (E, R) heading it points to, the current heading
-    where the command is zero. The setpoints of the physical controller: the command as
-    the idealised model would move (its kernel, ``domain.kernels._move``, computes the
-    same per rover).
-    """
-    move = body_to_world(actions, headings)
-    moved = (actions[..., 0] != 0) | (actions[..., 1] != 0)
-    return move, np.where(moved, np.arctan2(move[..., 1], move[..., 0]), headings)
 
 
 class PhysicsMotion:
@@ -238,7 +209,7 @@ class PhysicsMotion:
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """World positions (E, R, 2), headings (E, R), velocities (E, R, 2), spins (E, R)."""
         s = self._get(_ALL, 6)
-        return s[..., 0:2] - self.offsets, wrap_angle(s[..., 2]), s[..., 3:5].copy(), s[..., 5]
+        return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5].copy(), s[..., 5]
 
     # -- motion model interface --------------------------------------------------------------
 
@@ -265,33 +236,24 @@ class PhysicsMotion:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Advance one environment step under the (E, R, 2) clipped commands."""
         del positions  # the space holds the state
-        target_v, target_heading = commanded_move(actions, headings)
-        dt, out = self.dt, np.empty((self.n_teams, self.n_rovers, 3))
-        cfg = self.config
+        cfg, dt = self.config, self.dt
+        shape = (self.n_teams, self.n_rovers)
+        target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
+        setpoints(actions, headings, target_v, target_heading)
+        out = np.empty((*shape, 6))
         for substep in range(cfg.substeps):
             s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
-            velocity = s[..., 3:5].copy()
-            dv = target_v - velocity
-            norm = np.hypot(dv[..., 0], dv[..., 1])  # not (dv**2).sum(-1): slow on size-2 axes
-            dv *= np.minimum(1.0, self.max_dv / np.maximum(norm, 1e-300))[..., None]
-            error = wrap_angle(target_heading - s[..., 2])
-            target_w = np.sign(error) * np.minimum(
-                np.abs(error) / dt, np.sqrt(2.0 * self.alpha_max * np.abs(error))
-            )
-            dw = np.clip(target_w - s[..., 5], -self.max_dw, self.max_dw)
-            if substep == 0:  # as an impulse: acts within this physics step
-                velocity += dv
+            control(s, target_v, target_heading, substep == 0, dt, self.max_dv, self.max_dw,
+                    self.alpha_max, self.mass, self.moment, out)  # fmt: skip
             if cfg.collisions:  # no pair may end this physics step passed into another
-                speculative_contacts(s[..., 0:2], velocity, cfg.rover_radius, dt,
+                speculative_contacts(s[..., 0:2], out[..., 0:2], cfg.rover_radius, dt,
                                      self.space.collision_slop, 4)  # fmt: skip
-            if substep == 0 or cfg.collisions:
-                out[..., 0:2] = velocity
-                out[..., 2] = s[..., 5] + (dw if substep == 0 else 0.0)
-                self._set(_MOTION, out)
-            if substep > 0:  # as a force: the contact solver sees it before it moves the body
-                out[..., 0:2] = dv * (self.mass / dt)
-                out[..., 2] = dw * (self.moment / dt)
-                self._set(_FORCES, out)
+            self._set(_MOTION | _FORCES, out)
             self.space.step(dt)
         s = self._get(_STATE, 3)
-        return s[..., 0:2] - self.offsets, wrap_angle(s[..., 2])
+        return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2])
+
+    def _wrapped(self, angles: np.ndarray) -> np.ndarray:
+        out = np.empty(angles.shape)
+        wrap_angles(angles, out)
+        return out

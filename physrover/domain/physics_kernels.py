@@ -1,0 +1,138 @@
+"""Compiled kernels of the physical model's controller (see :mod:`physrover.domain.physics`).
+
+Everything the physical model computes around pymunk, in one call per physics step: the
+drive and steering controller (velocity and heading setpoints tracked with clipped force
+and torque), the speculative contacts, and the angle wrapping. pymunk keeps the bodies and
+integrates them; its state moves in and out as one (E, R, 6) array per physics step.
+"""
+
+from __future__ import annotations
+
+import math
+
+from physrover.compiled import jit
+from physrover.domain.kernels import _move
+
+
+@jit
+def wrap(angle):
+    """An angle wrapped to [-pi, pi), as ``(angle + pi) % (2 pi) - pi``."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@jit
+def wrap_angles(angles, out):
+    """``out = wrap(angles)`` elementwise for (E, R) arrays."""
+    for e in range(angles.shape[0]):
+        for i in range(angles.shape[1]):
+            out[e, i] = wrap(angles[e, i])
+
+
+@jit
+def setpoints(actions, headings, target_v, target_heading):
+    """The step's setpoints from (E, R, 2) clipped commands and (E, R) headings: the world
+    velocity (E, R, 2), the idealised model's move (world units per step), and the heading
+    (E, R), its direction (the current heading for a zero command); the same arithmetic as
+    the idealised step (``kernels._move``)."""
+    for e in range(headings.shape[0]):
+        for i in range(headings.shape[1]):
+            h = headings[e, i]
+            mx, my, new_heading = _move(math.cos(h), math.sin(h), h, actions[e, i, 0],
+                                        actions[e, i, 1])  # fmt: skip
+            target_v[e, i, 0] = mx
+            target_v[e, i, 1] = my
+            target_heading[e, i] = new_heading
+
+
+@jit
+def control(
+    state, target_v, target_heading, first, dt, max_dv, max_dw, alpha_max, mass, moment, out
+):
+    """The controller of one physics step, for every rover (the module docstring of
+    :mod:`physrover.domain.physics` gives the control law).
+
+    Args:
+        state: (E, R, 6) x, y, angle, vx, vy, w of the bodies now.
+        target_v: (E, R, 2), target_heading: (E, R): the step's setpoints.
+        first: whether this is the step's first physics step: the drive acts as an impulse
+            (written into the velocity, it moves the body within this physics step);
+            afterwards as a force and torque (which Chipmunk applies after moving the body,
+            so its contact solver sees them first).
+        out: (E, R, 6) written: vx, vy, w, fx, fy, torque to set before ``Space.step``.
+    """
+    for e in range(state.shape[0]):
+        for i in range(state.shape[1]):
+            vx, vy, w = state[e, i, 3], state[e, i, 4], state[e, i, 5]
+            dvx, dvy = target_v[e, i, 0] - vx, target_v[e, i, 1] - vy
+            scale = min(1.0, max_dv / max(math.hypot(dvx, dvy), 1e-300))
+            dvx, dvy = dvx * scale, dvy * scale
+            error = wrap(target_heading[e, i] - state[e, i, 2])
+            sign = (error > 0.0) - (error < 0.0)
+            magnitude = abs(error)
+            target_w = sign * min(magnitude / dt, math.sqrt(2.0 * alpha_max * magnitude))
+            dw = min(max(target_w - w, -max_dw), max_dw)
+            if first:
+                out[e, i, 0], out[e, i, 1], out[e, i, 2] = vx + dvx, vy + dvy, w + dw
+                out[e, i, 3], out[e, i, 4], out[e, i, 5] = 0.0, 0.0, 0.0
+            else:
+                out[e, i, 0], out[e, i, 1], out[e, i, 2] = vx, vy, w
+                out[e, i, 3] = dvx * (mass / dt)
+                out[e, i, 4] = dvy * (mass / dt)
+                out[e, i, 5] = dw * (moment / dt)
+
+
+@jit
+def speculative_contacts(positions, velocities, radius, dt, allowance, iterations):
+    """Stop rovers of a team from passing into each other within one physics step, in place.
+
+    Chipmunk detects contacts between discrete positions: two rovers closing at more than a
+    diameter per physics step can pass straight through each other, and slower impacts end a
+    step deeply overlapped. Before each physics step, for every pair (i, j) of a team with
+    centre distance d, normal n = (p_j - p_i) / d and closing speed u = (v_i - v_j) . n
+    (world units per step), the gap left after the step is ``d - 2 r - u dt``. Where that is
+    below ``-allowance``, the excess closing speed ``u - (d - 2 r + allowance) / dt`` is
+    removed along n, half from each rover (equal masses): an inelastic speculative contact.
+    Pairs are visited in index order, ``iterations`` sweeps (for crowds, where one
+    correction changes another pair's speed). Coincident centres are left to Chipmunk.
+
+    Args:
+        positions: (E, R, 2) centres at the start of the physics step.
+        velocities: (E, R, 2) the velocities the step will move them with, updated.
+        radius: rover radius; dt: the physics step, in environment steps;
+        allowance: the overlap a step may end with (Chipmunk's collision slop, so that
+            Chipmunk still sees the contact and keeps it).
+    """
+    n_teams, n_rovers = positions.shape[0], positions.shape[1]
+    contact = 2.0 * radius
+    for e in range(n_teams):
+        # Pairs farther apart than this cannot meet within the step: skipped before the sqrt.
+        v_max_sq = 0.0
+        for i in range(n_rovers):
+            v_sq = velocities[e, i, 0] ** 2 + velocities[e, i, 1] ** 2
+            v_max_sq = max(v_max_sq, v_sq)
+        reach = contact + 2.0 * math.sqrt(v_max_sq) * dt
+        reach_sq = reach * reach
+        for _ in range(iterations):
+            changed = False
+            for i in range(n_rovers):
+                for j in range(i + 1, n_rovers):
+                    dx = positions[e, j, 0] - positions[e, i, 0]
+                    dy = positions[e, j, 1] - positions[e, i, 1]
+                    d_sq = dx * dx + dy * dy
+                    if d_sq >= reach_sq or d_sq < 1e-24:
+                        continue
+                    d = math.sqrt(d_sq)
+                    nx, ny = dx / d, dy / d
+                    u = (velocities[e, i, 0] - velocities[e, j, 0]) * nx + (
+                        velocities[e, i, 1] - velocities[e, j, 1]
+                    ) * ny
+                    limit = (d - contact + allowance) / dt
+                    if u > limit:
+                        half = 0.5 * (u - limit)
+                        velocities[e, i, 0] -= half * nx
+                        velocities[e, i, 1] -= half * ny
+                        velocities[e, j, 0] += half * nx
+                        velocities[e, j, 1] += half * ny
+                        changed = True
+            if not changed:
+                break
