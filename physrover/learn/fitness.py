@@ -33,34 +33,72 @@ from physrover.registry import FITNESS_METHODS
 
 
 class FitnessMethod:
+    """How the CCEA turns a generation's episodes into each policy's fitness (the seam).
+
+    The CCEA (:class:`physrover.learn.ccea.CCEA`) calls, once per generation and in this
+    order:
+
+    1. :meth:`plan`: which policy of each rover plays in which team, for each of the
+       method's ``rounds``. Every round's k teams run as one batch of episodes, with the
+       champion team's evaluation episodes appended.
+    2. :meth:`assign`: the fitness of every policy from its episodes' feedback (the credit
+       signal, D or G per the config) and team scores, and for methods with
+       ``needs_trajectories`` its (s, a) trajectory of round 0.
+    3. :meth:`observe_champion`: the team the generation evaluated and its score.
+    4. evolution (selection and mutation) on the fitness, then :meth:`update`.
+
+    Everything a method keeps between generations must come back from :meth:`state` and go
+    in through :meth:`load` (arrays and JSON-able values; nested dicts and lists are fine):
+    a resumed run is bit-identical to an uninterrupted one only if nothing is left out.
+
+    Extra genomes: a team index in :meth:`plan` of k or more addresses
+    ``extra_genomes()[r, index - k]``, genomes that are not in the population (the hall of
+    fame's best team); the fitness of those is never asked for.
+    """
+
     rounds = 1
+    """Batches of k episodes (training rounds) per generation; each policy plays once per round."""
     needs_trajectories = False
+    """Whether :meth:`assign` receives the policies' trajectories (the critics do)."""
 
     def plan(self, rng: np.random.Generator, n_rovers: int, k: int) -> np.ndarray:
-        """(rounds, R, k) policy of rover r in team m of round q: fresh random permutations."""
+        """(rounds, R, k) ints: ``order[q, r, m]`` is the policy of rover r in team m of
+        round q. Default: a fresh random permutation of each population per round, so every
+        policy plays exactly once per round with random teammates. Indices >= k address
+        :meth:`extra_genomes`."""
         return np.argsort(rng.random((self.rounds, n_rovers, k)), axis=-1)
 
     def extra_genomes(self) -> np.ndarray | None:
-        """(R, n, P) genomes that ``plan`` addresses as policies k, k + 1, ... (or None)."""
+        """(R, n, P) genomes that :meth:`plan` addresses as policies k, ..., k + n - 1, or
+        None when the method uses none."""
         return None
 
     def observe_champion(self, genomes: np.ndarray, eval_G: float) -> None:
         """The champion team's (R, P) genomes and its evaluation G in this generation."""
 
     def assign(self, feedback: np.ndarray, G: np.ndarray, trajectories=None) -> np.ndarray:
-        """Fitness (R, k) from (rounds, R, k) feedback and team scores of each policy's
-        episodes and, for critics, (R, k, T, 10) trajectories of round 0."""
+        """Fitness (R, k), higher is better, NaN never selected.
+
+        Args:
+            feedback: (rounds, R, k) the credit of each policy's episode in each round.
+            G: (rounds, R, k) the team score of each policy's episode.
+            trajectories: (R, k, T, D) (s, a) pairs of each policy in round 0, D = the
+                sensor's size + 2; None unless ``needs_trajectories``.
+        """
         raise NotImplementedError
 
     def update(self, rng: np.random.Generator) -> float:
-        """End-of-generation learning; returns a loss, or NaN when there is none."""
+        """End-of-generation learning (after evolution, as Algorithm 1); returns a loss for
+        metrics.csv's ``critic_loss``, or NaN when there is none. ``rng``: the run's critic
+        generator."""
         return float("nan")
 
     def state(self) -> dict:
+        """Everything kept between generations, for checkpoints (see the class docstring)."""
         return {}
 
     def load(self, state: dict) -> None:
-        pass
+        """Restore what :meth:`state` returned."""
 
 
 class SingleEpisode(FitnessMethod):
