@@ -30,6 +30,11 @@ right -> 1, dead left -> 3, dead behind -> 0). The bearing is read from the obje
 ``(f, l)`` in the rover's frame (``f`` forward, ``l`` left) as ``atan2(l, f)``, so an object
 at the rover's own position (offset 0) has bearing 0 and lies in quadrant 2. The code uses
 the signs of ``f`` and ``l`` instead of ``atan2``: the same answer, exact on the boundaries.
+
+The lab's code computes ``floor((atan2(l, f) + pi) / (2 pi) * 4)`` clipped to 0-3, which
+agrees except for signed zeros: dead behind with ``l = +0`` (what its arithmetic gives for
+heading 0) is its quadrant 3 (here 0), and a coincident object is its quadrant 3 when the
+heading's cosine and sine are both negative (here always 2).
 """
 
 from __future__ import annotations
