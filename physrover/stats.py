@@ -32,3 +32,60 @@ def mean_ci(samples: np.ndarray, axis: int = 0) -> tuple[np.ndarray, np.ndarray,
         return mean, np.full_like(mean, np.nan, dtype=np.float64), n
     sd = samples.std(axis=axis, ddof=1)
     return mean, t975(n - 1) * sd / math.sqrt(n), n
+
+
+def permutation_test(a, b, max_exact: int = 200_000, resamples: int = 100_000, seed: int = 0):
+    """Two-sided p-value of the difference of the means of samples ``a`` and ``b`` under
+    the null that the labels are exchangeable (a permutation test: no normality assumed).
+
+    Exact, over every split of the pooled samples into groups of ``len(a)`` and ``len(b)``,
+    when there are at most ``max_exact`` splits (10 vs 10 seeds: 184,756); otherwise
+    ``resamples`` random splits from a generator seeded with ``seed`` (the p-value then
+    counts the observed split, so it is never 0). A split counts as extreme when its
+    absolute difference reaches the observed one (with a relative tolerance of 1e-12).
+    """
+    import itertools
+
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    pooled, n_a = np.concatenate([a, b]), len(a)
+    total = pooled.sum()
+    observed = abs(a.mean() - b.mean())
+    tolerance = 1e-12 * max(1.0, observed)
+    n_splits = math.comb(len(pooled), n_a)
+    if n_splits <= max_exact:
+        index = np.array(list(itertools.combinations(range(len(pooled)), n_a)))
+        sums = pooled[index].sum(axis=1)
+        diffs = np.abs(sums / n_a - (total - sums) / len(b))
+        return float(np.mean(diffs >= observed - tolerance))
+    rng = np.random.default_rng(seed)
+    sums = np.array([pooled[rng.permutation(len(pooled))[:n_a]].sum() for _ in range(resamples)])
+    diffs = np.abs(sums / n_a - (total - sums) / len(b))
+    return float((np.sum(diffs >= observed - tolerance) + 1) / (resamples + 1))
+
+
+def welch_t(a, b) -> tuple[float, float]:
+    """Welch's t statistic of ``mean(a) - mean(b)`` and its Welch-Satterthwaite degrees of
+    freedom (NaN when both samples have no spread)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    va, vb = a.var(ddof=1) / len(a), b.var(ddof=1) / len(b)
+    if va + vb == 0:
+        return math.nan, math.nan
+    t = (a.mean() - b.mean()) / math.sqrt(va + vb)
+    df = (va + vb) ** 2 / (va**2 / (len(a) - 1) + vb**2 / (len(b) - 1))
+    return float(t), float(df)
+
+
+def hedges_g(a, b) -> float:
+    """Standardised difference of means, ``(mean(a) - mean(b)) / pooled sd``, with Hedges'
+    small-sample correction ``1 - 3 / (4 (n_a + n_b) - 9)``; NaN without spread."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    n_a, n_b = len(a), len(b)
+    pooled = ((n_a - 1) * a.var(ddof=1) + (n_b - 1) * b.var(ddof=1)) / (n_a + n_b - 2)
+    if pooled == 0:
+        return math.nan
+    return float((a.mean() - b.mean()) / math.sqrt(pooled) * (1 - 3 / (4 * (n_a + n_b) - 9)))
+
+
+def learned_fraction(final_scores, threshold: float = 0.5) -> float:
+    """The fraction of runs whose final score is above ``threshold`` (a run "learns")."""
+    return float(np.mean(np.asarray(final_scores, dtype=float) > threshold))

@@ -1,0 +1,123 @@
+"""Tests of significance for the claims of the paper's Section 5 that RESULTS.md checks.
+
+    python experiments/significance.py [--runs experiments/results/runs.csv]
+
+Reads each run's final score (mean eval G of its last 50 generations) from ``runs.csv`` and
+writes ``significance.csv`` and ``significance.md`` beside it: for every comparison of two
+cells, the means, the difference, the exact two-sided permutation p-value (every split of
+the seeds; no normality assumed), Welch's t and its degrees of freedom, Hedges' g, and the
+fraction of seeds that learn at all (final score above 0.5) in each cell.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from physrover.stats import hedges_g, learned_fraction, permutation_test, welch_t
+
+# (claim, sweep, cell A, cell B); a cell is (method, n_req, n_rovers).
+COMPARISONS = [
+    *[(1, "fig4-7-long", ("average", 3, 15), (m, 3, 15)) for m in ("max-critic", "D")],
+    *[(3, "fig4-7-long", ("average", n, 15), ("D", n, 15)) for n in (4, 5)],
+    *[(4, "fig4-7-long", ("max-critic", n, 15), ("mean-critic", n, 15)) for n in (3, 4, 5, 6)],
+    *[(4, "fig4-7", ("max-critic", n, 15), ("mean-critic", n, 15)) for n in (3, 4, 5, 6)],
+    *[(4, "fig4-7-long", ("mean-critic", n, 15), ("average", n, 15)) for n in (5, 6)],
+    (4, "fig4-7-long", ("average", 4, 15), ("max-critic", 4, 15)),
+    *[
+        (5, "fig8-9-long", ("max-critic", n, r), ("average", n, r))
+        for n in (4, 6)
+        for r in (6, 9, 12, 15)
+    ],
+]
+
+CLAIMS = {
+    1: "all methods learn at n_req 3",
+    3: "the average improves on D at n_req 4-5",
+    4: "critics learn everywhere; max critic above mean critic",
+    5: "critics comparable or better than the average at every team size",
+}
+
+
+def load(path: Path) -> dict[tuple, list[float]]:
+    """{(sweep, method, n_req, n_rovers): [final score of each seed]} (idealised runs)."""
+    cells: dict[tuple, list[float]] = defaultdict(list)
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            if row["motion"] != "ideal":
+                continue
+            key = (row["sweep"], row["method"], int(row["n_req"]), int(row["n_rovers"]))
+            cells[key].append(float(row["final_G"]))
+    return cells
+
+
+def compare(cells: dict) -> list[dict]:
+    rows = []
+    for claim, sweep, a, b in COMPARISONS:
+        x, y = cells.get((sweep, *a)), cells.get((sweep, *b))
+        if not x or not y:
+            continue
+        t, df = welch_t(x, y)
+        rows.append(
+            {
+                "claim": claim,
+                "sweep": sweep,
+                "A": f"{a[0]} n_req={a[1]} rovers={a[2]}",
+                "B": f"{b[0]} n_req={b[1]} rovers={b[2]}",
+                "n": f"{len(x)}/{len(y)}",
+                "mean_A": np.mean(x),
+                "mean_B": np.mean(y),
+                "diff": np.mean(x) - np.mean(y),
+                "p_permutation": permutation_test(x, y),
+                "welch_t": t,
+                "welch_df": df,
+                "hedges_g": hedges_g(x, y),
+                "learn_A": learned_fraction(x),
+                "learn_B": learned_fraction(y),
+            }
+        )
+    return rows
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float) or isinstance(v, np.floating):
+        return "n/a" if np.isnan(v) else f"{v:.3g}"
+    return str(v)
+
+
+def write(rows: list[dict], out: Path) -> None:
+    with open(out.with_suffix(".csv"), "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows({k: _fmt(v) for k, v in r.items()} for r in rows)
+    lines = [
+        "| claim | sweep | A | B | n | mean A | mean B | p (perm.) | Welch t (df) | Hedges' g"
+        " | learn A | learn B |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        welch = "n/a" if np.isnan(r["welch_t"]) else f"{r['welch_t']:.2f} ({r['welch_df']:.1f})"
+        lines.append(
+            f"| {r['claim']} | {r['sweep']} | {r['A']} | {r['B']} | {r['n']} | "
+            f"{r['mean_A']:.2f} | {r['mean_B']:.2f} | {_fmt(r['p_permutation'])} | {welch} | "
+            f"{_fmt(r['hedges_g'])} | {r['learn_A']:.0%} | {r['learn_B']:.0%} |"
+        )
+    out.with_suffix(".md").write_text("\n".join(lines) + "\n")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    here = Path(__file__).parent / "results"
+    parser.add_argument("--runs", type=Path, default=here / "runs.csv")
+    args = parser.parse_args()
+    rows = compare(load(args.runs))
+    write(rows, args.runs.with_name("significance"))
+    print(f"{len(rows)} comparisons -> {args.runs.with_name('significance.md')}")
+
+
+if __name__ == "__main__":
+    main()
