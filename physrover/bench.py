@@ -74,3 +74,63 @@ def bench_train(config, methods, generations: int = 10) -> list[str]:
         )
         lines.append(f"{method:20s} median {statistics.median(runs):6.1f} ms/generation ({parts})")
     return lines
+
+
+def time_generation(config, generations: int = 3) -> float:
+    """Median seconds per generation of a run with ``config`` (after two warm-up ones)."""
+    from physrover.learn.ccea import CCEA
+
+    ccea = CCEA(config)
+    for _ in range(2):
+        ccea.run_generation()
+    runs = []
+    for _ in range(generations):
+        start = time.perf_counter()
+        ccea.run_generation()
+        runs.append(time.perf_counter() - start)
+    return statistics.median(runs)
+
+
+@dataclass(frozen=True)
+class CellEstimate:
+    """One cell of a sweep: its label, seconds per generation, runs and their total time."""
+
+    label: str
+    seconds_per_generation: float
+    runs: int
+    generations: int
+
+    @property
+    def run_seconds(self) -> float:
+        return self.seconds_per_generation * self.generations
+
+    @property
+    def total_seconds(self) -> float:
+        return self.run_seconds * self.runs
+
+
+def estimate_sweep(specs, timer=time_generation) -> list[CellEstimate]:
+    """Per cell (runs equal but for the seed), the time of one generation measured with
+    ``timer(config)``, times the cell's generations and seeds: what the sweep will cost."""
+    from physrover.config import RunConfig
+
+    cells: dict[str, list] = {}
+    for spec in specs:
+        config = RunConfig.from_toml(spec.config_toml)
+        key = config.with_overrides({"seed": 0}).to_toml()
+        cells.setdefault(key, []).append((spec, config))
+    estimates = []
+    for members in cells.values():
+        spec, config = members[0]
+        label = spec.name.rsplit("_seed=", 1)[0]
+        seconds = timer(config.with_overrides({"seed": 0}))
+        estimates.append(CellEstimate(label, seconds, len(members), config.learn.generations))
+    return estimates
+
+
+def sweep_wall_time(estimates: list[CellEstimate], workers: int) -> float:
+    """Wall time of the sweep on ``workers`` processes: the total spread over the workers,
+    but never less than its longest single run (runs are not split between workers)."""
+    total = sum(e.total_seconds for e in estimates)
+    longest = max((e.run_seconds for e in estimates), default=0.0)
+    return max(total / max(workers, 1), longest)

@@ -154,7 +154,38 @@ def cmd_bench(args: argparse.Namespace) -> int:
         for line in bench.bench_train(config, methods, generations=args.repeats):
             print(line)
         return 0
+    if args.what == "paper":
+        return _bench_paper(args, bench)
     raise UsageError(f"unknown benchmark {args.what!r}")
+
+
+PAPER_SWEEPS = ("experiments/fig4-7-long.toml", "experiments/fig8-9-paper.toml")
+
+
+def _bench_paper(args: argparse.Namespace, bench) -> int:
+    """Time a few generations of every cell of the sweep files and print what each sweep
+    (and all of them) will take on this machine with ``--workers`` processes."""
+    from physrover.sweep import Sweep
+
+    files = args.sweeps or list(PAPER_SWEEPS)
+    grand = 0.0
+    for path in files:
+        sweep = Sweep.load(path)
+        specs = sweep.runs("runs/sweeps", seeds=args.seeds)
+        estimates = bench.estimate_sweep(
+            specs, timer=lambda c: bench.time_generation(c, generations=args.repeats)
+        )
+        wall = bench.sweep_wall_time(estimates, args.workers)
+        grand += wall
+        print(f"{sweep.name}: {len(specs)} runs, {len(estimates)} cells")
+        for e in sorted(estimates, key=lambda e: -e.total_seconds):
+            per_gen = 1000 * e.seconds_per_generation
+            print(f"  {e.label:40s} {per_gen:7.1f} ms/gen x {e.generations} gen x {e.runs} "
+                  f"runs = {e.total_seconds / 60:6.1f} min")  # fmt: skip
+        print(f"  estimated wall time on {args.workers} workers: {wall / 3600:.2f} h")
+    if len(files) > 1:
+        print(f"all {len(files)} sweeps: {grand / 3600:.2f} h on {args.workers} workers")
+    return 0
 
 
 def cmd_render(args: argparse.Namespace) -> int:
@@ -366,7 +397,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_sweep)
 
     p = sub.add_parser("bench", help="time the world or the learner (benchmarks, not tests)")
-    p.add_argument("what", choices=["world", "train"], help="what to time")
+    p.add_argument(
+        "what",
+        choices=["world", "train", "paper"],
+        help="what to time ('paper': estimate the wall time of sweep files)",
+    )
+    p.add_argument(
+        "sweeps", nargs="*", help="paper: sweep files (default: the paper's long sweeps)"
+    )
+    p.add_argument("--seeds", type=int, help="paper: seeds per cell (default: the file's)")
+    p.add_argument("--workers", type=int, default=2, help="paper: parallel runs (default 2)")
     p.add_argument("--methods", help="comma-separated methods for 'train' (default: all)")
     _add_motion_args(p, "the config's")
     p.add_argument("--teams", type=int, default=50, help="teams stepped together (default 50)")

@@ -151,3 +151,25 @@ def test_drop_state_keeps_what_plots_and_videos_need(tmp_path):
     assert again.skipped == 2 and not again.finished
     with pytest.raises(RunError, match="state.npz was dropped"):
         train(None, specs[0].out, resume=True, generations=99, progress=False)
+
+
+def test_sweep_cost_estimate_arithmetic(tmp_path):
+    from physrover.bench import estimate_sweep, sweep_wall_time
+
+    specs = _sweep(tmp_path).runs(tmp_path / "est", seeds=3)
+    # a timer that charges by method: cells must be timed once each, seeds multiply
+    timed = []
+
+    def timer(config):
+        timed.append(config.learn.seed)
+        return 0.5 if config.learn.method == "D" else 2.0
+
+    estimates = estimate_sweep(specs, timer=timer)
+    assert len(estimates) == len(specs) // 3 and set(timed) == {0}
+    for e in estimates:
+        assert e.runs == 3 and e.total_seconds == pytest.approx(e.run_seconds * 3)
+    total = sum(e.total_seconds for e in estimates)
+    assert sweep_wall_time(estimates, 2) == pytest.approx(
+        max(total / 2, max(e.run_seconds for e in estimates))
+    )
+    assert sweep_wall_time(estimates, 1000) == pytest.approx(max(e.run_seconds for e in estimates))
