@@ -1,9 +1,11 @@
 """Interfaces to the multi-agent reinforcement learning (MARL) ecosystem.
 
-This package holds the MARL-ecosystem interfaces (today the PettingZoo parallel env,
-:func:`parallel_env`) and, later, the gradient-based baselines trained through them. Its
-dependencies are optional (``pip install 'physrover[marl]'``): importing it never needs
-them, building an env does.
+This package holds the MARL-ecosystem interfaces (the PettingZoo parallel env,
+:func:`parallel_env`) and the gradient-based baselines on the natively batched vector env:
+:mod:`physrover.marl.mappo` (MAPPO, and IPPO behind a flag) and :mod:`physrover.marl.maddpg`
+(MADDPG), written on torch (imported only by those two modules). pettingzoo is optional
+(``pip install 'physrover[marl]'``): importing this package never needs it, building a
+PettingZoo env does.
 """
 
 from __future__ import annotations
