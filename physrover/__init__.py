@@ -9,6 +9,7 @@ from __future__ import annotations
 import gymnasium
 
 from physrover.config import ConfigError, DomainConfig
+from physrover.domain import credit as _credit  # noqa: F401  (registers the credit signals)
 from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
 from physrover.learn import fitness as _fitness  # noqa: F401  (registers the fitness methods)
 

@@ -19,7 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
-from physrover.registry import FITNESS_METHODS, did_you_mean
+from physrover.registry import CREDITS, FITNESS_METHODS, did_you_mean
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -328,7 +328,6 @@ def parse_override(text: str) -> tuple[str, Any]:
 # Learning and runs
 # ----------------------------------------------------------------------------------------------
 
-FEEDBACKS = ("D", "G")
 OPTIMIZERS = ("sgd", "adam")
 
 
@@ -349,7 +348,8 @@ class LearnConfig(ConfigBase):
     method: str = "max-critic"
     """Fitness method (see the class docstring)."""
     feedback: str = "D"
-    """Immediate feedback per rover: "D" (difference evaluation, Eq. 1) or "G"."""
+    """The credit signal, each rover's immediate feedback: "D" (difference evaluation, Eq. 1),
+    "G", or any registered in :data:`physrover.registry.CREDITS` (physrover.domain.credit)."""
     generations: int = 5000
     """Generations to run."""
     seed: int = 0
@@ -394,7 +394,7 @@ class LearnConfig(ConfigBase):
         check(
             self.method in FITNESS_METHODS, "method", FITNESS_METHODS.unknown_message(self.method)
         )
-        check_choice(self.feedback, FEEDBACKS, "feedback")
+        check(self.feedback in CREDITS, "feedback", CREDITS.unknown_message(self.feedback))
         check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
         check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")

@@ -81,3 +81,7 @@ class Registry(Generic[T]):
 
 #: Fitness methods of the CCEA: name -> :class:`physrover.learn.fitness.MethodSpec`.
 FITNESS_METHODS: Registry = Registry("fitness method")
+
+#: Credit signals, the immediate feedback of each rover: name -> a
+#: :class:`physrover.domain.credit.Credit`.
+CREDITS: Registry = Registry("credit signal")

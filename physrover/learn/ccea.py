@@ -7,7 +7,8 @@ One generation, everything batched over teams and rovers (R rovers, k policies e
    instead pairs each policy with the best team found so far). The champion
    team (every population's best policy by the latest fitness) is added ``eval_episodes``
    times; all teams run as one batch of episodes on the vector env.
-2. **Feedback.** Each policy's immediate feedback (D or G of its episode) and trajectory.
+2. **Feedback.** Each policy's immediate feedback (its credit: D, G or a registered signal,
+   :mod:`physrover.domain.credit`) and trajectory.
 3. **Fitness** from the fitness method (D, G, average, leniency or a fitness critic).
 4. **Evolution**: binary tournament with Cauchy mutation (:mod:`physrover.learn.evolution`).
 5. **Critic update** (critic methods only), after evolution as in Algorithm 1.
@@ -39,6 +40,7 @@ from physrover.learn.evolution import evolve
 from physrover.learn.fitness import Problem, make_method
 from physrover.learn.kernels import dims, gather_trajectories
 from physrover.learn.policies import PolicyLayout
+from physrover.registry import CREDITS
 
 
 @dataclass(frozen=True)
@@ -78,6 +80,7 @@ class CCEA:
         ]
         self.genomes = self.layout.init((self.n_rovers, self.k), init_rng)
         self.method = make_method(cfg, Problem(self.n_rovers, d.steps, n_obs, n_act), critic_init)
+        self.credit = CREDITS[cfg.feedback]  # each rover's immediate feedback
         self.n_train = self.method.rounds * self.k
         self.env = RoverVectorEnv(self.n_train + cfg.eval_episodes, config=d)
         self.env.reset(seed=int(env_seq.integers(2**31)))
@@ -91,7 +94,8 @@ class CCEA:
     # -- one generation ----------------------------------------------------------------------
 
     def rollout(self, genome_index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Run one episode per row of (E, R) genome indices; returns G (E,) and D (E, R).
+        """Run one episode per row of (E, R) genome indices; returns G (E,) and each rover's
+        credit (E, R), the configured signal (``[learn] feedback``, D by default).
 
         Index k and above address the method's extra genomes (the hall of fame), if any.
         """
@@ -104,7 +108,8 @@ class CCEA:
         obs, _ = self.env.reset()
         for _ in range(self.config.domain.steps):
             obs, *_ = self.env.step(policy(obs))
-        return self.env.world.G.copy(), self.env.world.D.copy()
+        world = self.env.world
+        return world.G.copy(), np.array(self.credit(world), dtype=np.float64)
 
     def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:
         """(rounds, k, R) values by team -> (rounds, R, k) by policy; ``where[q, r, p]`` is
@@ -129,12 +134,11 @@ class CCEA:
         order = self.method.plan(self.team_rng, R, k)
         team_index = order.transpose(0, 2, 1).reshape(rounds * k, R)
         champions = np.broadcast_to(self.champion, (cfg.eval_episodes, R))
-        G, D = self.rollout(np.concatenate([team_index, champions]))
+        G, credit = self.rollout(np.concatenate([team_index, champions]))
         t_rollout = time.perf_counter()
 
         where = np.argsort(order, axis=-1)  # where[q, r, p]: the team of policy p
-        feedback_team = D if cfg.feedback == "D" else np.broadcast_to(G[:, None], D.shape)
-        feedback = self._by_policy(feedback_team[: self.n_train].reshape(rounds, k, R), where)
+        feedback = self._by_policy(credit[: self.n_train].reshape(rounds, k, R), where)
         team_G = np.broadcast_to(G[: self.n_train, None], (self.n_train, R))
         G_by_policy = self._by_policy(team_G.reshape(rounds, k, R), where)
         trajectories = None

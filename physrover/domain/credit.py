@@ -1,0 +1,56 @@
+"""The credit seam: each rover's immediate feedback from an episode (paper Section 2.2).
+
+A credit signal turns an episode that a :class:`~physrover.domain.world.RoverWorld` just
+played into one number per rover of every team, the *immediate feedback* that the CCEA's
+fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
+
+- ``"D"``: the difference evaluation ``D_i = G(z) - G(z_-i)`` with the null counterfactual
+  (rover i's whole trajectory removed), from the world's running records;
+- ``"G"``: the team score G for every rover of the team.
+
+A new signal is a :class:`Credit` subclass (a ``__call__(world) -> (E, R)``) and one
+:func:`register_credit` call, from any module; its name then works in TOML and
+``--set feedback=NAME``. It reads the world after the episode: ``world.G`` (E,),
+``world.D`` (E, R), ``world.scores`` (captures per POI, with and without each rover),
+``world.position_history`` and the trajectories.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from physrover.registry import CREDITS
+
+
+class Credit:
+    """An immediate feedback signal; see the module docstring."""
+
+    def __call__(self, world) -> np.ndarray:
+        """(E, R) float64 feedback of each rover of each team for the episode ``world`` just
+        played."""
+        raise NotImplementedError
+
+
+class Difference(Credit):
+    """D of Eq. 1, the paper's immediate feedback."""
+
+    def __call__(self, world) -> np.ndarray:
+        return world.D
+
+
+class TeamScore(Credit):
+    """G (Eq. 11) for every rover of the team."""
+
+    def __call__(self, world) -> np.ndarray:
+        return np.repeat(world.G[:, None], world.n_rovers, axis=1)
+
+
+def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Credit:
+    """Make ``credit`` the signal named ``name`` (``[learn] feedback = "NAME"``)."""
+    if not isinstance(credit, Credit):
+        raise TypeError(f"a credit signal must be a Credit instance, got {type(credit).__name__}")
+    return CREDITS.register(name, credit, replace=replace)
+
+
+register_credit("D", Difference())
+register_credit("G", TeamScore())
