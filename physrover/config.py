@@ -371,7 +371,8 @@ class LearnConfig(ConfigBase):
     leaky_slope: float = 0.01
     """Slope of the critic's leaky ReLU for negative inputs."""
     critic_lr: float = 5e-6
-    """Critic learning rate alpha_w (Eqs. 7, 9)."""
+    """Critic learning rate alpha_w (Eqs. 7, 9); 0 freezes the critic at its random
+    initialisation (an ablation: is it the training or the random shape that helps?)."""
     critic_optimizer: str = "sgd"
     """"sgd": plain mini-batch gradient steps of Eq. 7/9; "adam": Adam on the same gradient."""
     replay_trajectories: int = 500
@@ -419,9 +420,16 @@ class LearnConfig(ConfigBase):
             "mutation_rate",
             f"must be in [0, 1], got {self.mutation_rate}",
         )
-        for name in ("mutation_scale", "critic_lr"):
-            value = getattr(self, name)
-            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        check(
+            self.mutation_scale > 0 and math.isfinite(self.mutation_scale),
+            "mutation_scale",
+            f"must be > 0, got {self.mutation_scale}",
+        )
+        check(
+            self.critic_lr >= 0 and math.isfinite(self.critic_lr),
+            "critic_lr",
+            f"must be >= 0 (0 freezes the critic at its random start), got {self.critic_lr}",
+        )
         check(
             0.0 <= self.leaky_slope < 1.0,
             "leaky_slope",

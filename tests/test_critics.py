@@ -145,3 +145,16 @@ def test_paper_capacities_hold_ten_generations():
         method.critic.store(traj, np.full((2, 50), float(g)))
     assert method.critic.buffer.size == 25000
     assert sorted(set(method.critic.buffer.feedback[0])) == list(range(2, 12))
+
+
+def test_a_zero_learning_rate_freezes_the_critic():
+    # critic_lr = 0 (the frozen-critic ablation): updates run, report a loss, change nothing
+    for optimizer in ("sgd", "adam"):
+        settings = CriticSettings("max", "inexact", 6, 0.01, 0.0, optimizer, 100, 4, 3)
+        fc = FitnessCritic(2, 5, 10, settings, np.random.default_rng(0))
+        rng = np.random.default_rng(4)
+        fc.store(rng.normal(size=(2, 4, 5, 10)), rng.normal(size=(2, 4)))
+        before = [p.copy() for p in fc.critics.params()]
+        assert np.isfinite(fc.update(rng))
+        for a, b in zip(before, fc.critics.params(), strict=True):
+            np.testing.assert_array_equal(a, b)
