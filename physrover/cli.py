@@ -237,7 +237,8 @@ def cmd_curves(args: argparse.Namespace) -> int:
         result = plots.make_final(run_dirs, args.final, args.out, by=by, last=args.last,
                                   title=title)  # fmt: skip
     else:
-        result = plots.make_curves(run_dirs, args.out, by=by, smooth=args.smooth, title=title)
+        result = plots.make_curves(run_dirs, args.out, by=by, smooth=args.smooth, title=title,
+                                   x=args.x)  # fmt: skip
     for message in result.messages:
         print(message, file=sys.stderr)
     print(f"plot: {result.png}\nnumbers: {result.csv}")
@@ -374,6 +375,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--final", metavar="FIELD", help="plot the final score against FIELD")
     p.add_argument("--last", type=int, default=1, help="--final: average the last N gens")
     p.add_argument("--smooth", type=int, default=1, help="moving average over N generations")
+    p.add_argument(
+        "--x",
+        choices=["generation", "episodes"],
+        default="generation",
+        help="x axis: generations, or training episodes (compares learners of different cost)",
+    )
     p.add_argument("--title", default=None, help="plot title (default: what all runs share)")
     p.set_defaults(func=cmd_curves)
 

@@ -54,6 +54,10 @@ class Run:
     """(G,) float: the champion team's mean eval G, one per metrics row."""
     generation: np.ndarray
     """(G,) int: the metrics' ``generation`` column for the same rows (1 = first)."""
+    episodes: np.ndarray
+    """(G,) int: training episodes the learner had played by the end of each row (the
+    metrics' ``episodes`` column if it has one, else generation x the fitness method's
+    episodes per generation, :func:`training_episodes`)."""
 
     @property
     def g_max(self) -> float:
@@ -114,8 +118,24 @@ def load_runs(
         rows = read_metrics(path / METRICS)
         eval_g = np.array([r["eval_G"] for r in rows], dtype=float)
         generation = np.array([r["generation"] for r in rows], dtype=np.int64)
-        runs.append(Run(path, group_label(fields, names), fields, eval_g, generation))
+        if rows and "episodes" in rows[0]:
+            episodes = np.array([r["episodes"] for r in rows], dtype=np.int64)
+        else:
+            episodes = generation * training_episodes(load_run_config(path))
+        label = group_label(fields, names)
+        runs.append(Run(path, label, fields, eval_g, generation, episodes))
     return runs
+
+
+def training_episodes(config) -> int:
+    """Training episodes per CCEA generation: the fitness method's rounds x the population
+    (k for D, G and the critics; n_samples x k for average and leniency; R x k for the hall
+    of fame). The champion's evaluation episodes are a measurement and do not count."""
+    from physrover.learn.fitness import Problem, make_method
+
+    problem = Problem(config.domain.n_rovers, 1, 1, 1)  # sizes do not change the rounds
+    method = make_method(config.learn, problem, np.random.default_rng(0))
+    return method.rounds * config.learn.population
 
 
 def default_title(runs: list[Run]) -> str:
@@ -228,8 +248,10 @@ def curve_table(runs: list[Run], smooth: int = 1) -> Table:
         raw_mean, raw_ci, n = mean_ci(data)
         mean, ci, _ = mean_ci(_smooth(data, window)) if window > 1 else (raw_mean, raw_ci, n)
         g_max, method = _shared(groups[group])
+        first = groups[group][0]
         table[group] = {
             "generation": generation,
+            "episodes": first.episodes[np.isin(first.generation, generation)],
             "mean": mean,
             "ci": ci,
             "n": n,
@@ -286,6 +308,7 @@ def final_table(runs: list[Run], x: str, last: int = 1) -> Table:
 CURVE_COLUMNS = [
     "group",
     "generation",
+    "episodes",
     "mean",
     "ci95_half_width",
     "n",
@@ -320,6 +343,7 @@ def write_csv(table: dict, path: Path, x_name: str | None = None) -> None:
             ):
                 row = [group, str(int(xv)) if curves else f"{xv:g}", num(m), num(c), int(k)]
                 if curves:
+                    row.insert(2, int(cols["episodes"][i]) if "episodes" in cols else "")
                     raw_mean = cols.get("raw_mean", cols["mean"])[i]
                     raw_ci = cols.get("raw_ci", cols["ci"])[i]
                     row += [num(raw_mean), num(raw_ci), int(cols.get("smooth", 1))]
@@ -406,21 +430,25 @@ def curve_legend(group: str, cols: dict) -> str:
     return f"{group} (n={cols['n']}{note})"
 
 
-def plot_curves(table: dict, out: Path, title: str = "") -> Path:
-    """Mean performance score per generation with 95% CI bands (like the paper's Figs 4-6),
-    the band clipped to [0, max G], and a dashed line at max G; CSV beside ``out``."""
+def plot_curves(table: dict, out: Path, title: str = "", x: str = "generation") -> Path:
+    """Mean performance score per generation (``x="episodes"``: per training episode, the
+    axis on which learners of different sample costs compare) with 95% CI bands (like the
+    paper's Figs 4-6), the band clipped to [0, max G], and a dashed line at max G; CSV
+    beside ``out``."""
+    if x not in ("generation", "episodes"):
+        raise ConfigError("--x", f"must be generation or episodes, got {x!r}")
     out = Path(out)
     fig, ax, plt = _axes(title)
     colours = group_colours(table, {g: c.get("method") for g, c in table.items()})
     for group, cols in table.items():
         (line,) = ax.plot(
-            cols["generation"], cols["mean"], label=curve_legend(group, cols), color=colours[group]
+            cols[x], cols["mean"], label=curve_legend(group, cols), color=colours[group]
         )
         if cols["n"] > 1:
             low, high = band(cols["mean"], cols["ci"], cols.get("g_max", math.inf))
-            ax.fill_between(cols["generation"], low, high, color=line.get_color(), alpha=0.2)
+            ax.fill_between(cols[x], low, high, color=line.get_color(), alpha=0.2)
     _max_g_lines(ax, table)
-    ax.set_xlabel("Generation")
+    ax.set_xlabel("Generation" if x == "generation" else "Training episodes")
     _finish(fig, ax, plt, out)
     write_csv(table, out.with_suffix(".csv"), "generation")
     return out
@@ -477,14 +505,15 @@ def make_curves(
     by: tuple[str, ...] = (),
     smooth: int = 1,
     title: str | None = None,
+    x: str = "generation",
 ) -> Plot:
     """Learning curves of ``run_dirs`` (``physrover curves``): group, tabulate, draw to
-    ``out`` (default :func:`default_out`) with the CSV beside it. ``title`` None: the
-    :func:`default_title` of the runs."""
+    ``out`` (default :func:`default_out`) with the CSV beside it, against generations or
+    training episodes (``x``). ``title`` None: the :func:`default_title` of the runs."""
     runs = load_runs(run_dirs, by=by)
     table = curve_table(runs, smooth=smooth)
     png = Path(out) if out else default_out(run_dirs)
-    plot_curves(table, png, default_title(runs) if title is None else title)
+    plot_curves(table, png, default_title(runs) if title is None else title, x=x)
     return Plot(png, png.with_suffix(".csv"), table, list(table.messages))
 
 

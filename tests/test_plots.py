@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from physrover import plots
-from physrover.config import RunConfig
+from physrover.config import ConfigError, RunConfig
 from physrover.learn.ccea import stats_header
 from physrover.plots import curve_table, final_table, load_runs, mean_ci, t975, write_csv
 from physrover.runs import prepare_run_dir
@@ -80,6 +80,7 @@ def test_curve_numbers(tmp_path):
     expected = {
         "group": "D",
         "generation": "3",
+        "episodes": "150",  # method D: one round of k = 50 episodes a generation
         "mean": "4.0",
         "ci95_half_width": half,
         "n": "3",
@@ -286,3 +287,32 @@ def test_a_method_keeps_its_colour_across_figures():
 def test_band_of_a_single_run_is_nan():
     low, high = plots.band(np.array([1.0, 2.0]), np.array([math.nan, math.nan]), 10.0)
     assert np.isnan(low).all() and np.isnan(high).all()
+
+
+def test_episodes_axis_counts_each_methods_training_episodes(tmp_path):
+    # k = 50: D plays 50 training episodes a generation, the average 10 x 50, the hall of
+    # fame R x 50 (R = 15); the champion's evaluation episodes do not count.
+    runs = [
+        _fake_run(tmp_path, "d", "D", 3, [1.0, 2.0]),
+        _fake_run(tmp_path, "a", "average", 3, [1.0, 2.0]),
+        _fake_run(tmp_path, "h", "hall-of-fame", 3, [1.0, 2.0]),
+    ]
+    table = curve_table(load_runs(runs))
+    assert table["D"]["episodes"].tolist() == [50, 100]
+    assert table["average"]["episodes"].tolist() == [500, 1000]
+    assert table["hall-of-fame"]["episodes"].tolist() == [750, 1500]
+    plot = plots.make_curves(runs, tmp_path / "by_episodes.png", x="episodes")
+    rows = _csv_rows(plot.csv)
+    assert [r["episodes"] for r in rows if r["group"] == "average"] == ["500", "1000"]
+    with pytest.raises(ConfigError, match="--x"):
+        plots.plot_curves(table, tmp_path / "bad.png", x="seconds")
+
+
+def test_an_episodes_column_in_the_metrics_is_used_as_is(tmp_path):
+    run = _fake_run(tmp_path, "m", "D", 3, [1.0, 2.0])
+    text = (run / "metrics.csv").read_text().splitlines()
+    text[0] += ",episodes"
+    text[1] += ",32"
+    text[2] += ",64"
+    (run / "metrics.csv").write_text("\n".join(text) + "\n")
+    assert load_runs([run])[0].episodes.tolist() == [32, 64]
