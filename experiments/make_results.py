@@ -47,6 +47,55 @@ def motion_label(run: plots.Run) -> str:
     return "physics+collisions" if f["collisions"] else "physics"
 
 
+ABLATED = ("method", "critic_lr", "critic_optimizer", "replay_pairs", "critic_hidden")
+"""The fields the ablation changes, one at a time, from the paper's max critic."""
+
+
+def ablation_table(sweep: Path, last: int) -> None:
+    """results/ablation.{md,csv}: one row per variant (what differs from the paper's max
+    critic), per n_req the final G (mean +- 95% CI over seeds) and the critic's loss (its
+    mean squared error over the last ``last`` generations, mean over seeds)."""
+    from physrover.config import LearnConfig
+
+    paper = LearnConfig(method="max-critic").to_dict()
+    runs = [r for r in plots.load_runs(find_runs([sweep])) if len(r.eval_G)]
+    cells = defaultdict(lambda: {"final": [], "loss": [], "gens": []})
+    for run in runs:
+        changed = [f"{f}={run.fields[f]}" for f in ABLATED if run.fields[f] != paper[f]]
+        variant = ", ".join(changed) or "the paper's max critic"
+        rows = read_metrics(run.path / "metrics.csv")
+        loss = np.array([r["critic_loss"] for r in rows[-last:]], dtype=float)
+        cell = cells[(variant, run.fields["n_req"])]
+        cell["final"].append(float(run.eval_G[-last:].mean()))
+        cell["loss"].append(float(np.nanmean(loss)) if np.isfinite(loss).any() else np.nan)
+        cell["gens"].append(len(rows))
+    n_reqs = sorted({n for _, n in cells})
+    variants = sorted({v for v, _ in cells}, key=lambda v: (v != "the paper's max critic", v))
+    head = " | ".join(f"n_req {n}: final G | loss | seeds, gens" for n in n_reqs)
+    lines = [f"| variant | {head} |", "|---|" + "---|---|---|" * len(n_reqs)]
+    csv_rows = []
+    for v in variants:
+        parts = []
+        for n in n_reqs:
+            c = cells.get((v, n))
+            if not c:
+                parts.append("| | ")
+                continue
+            mean, ci, k = plots.mean_ci(np.array(c["final"]))
+            loss = float(np.nanmean(c["loss"])) if np.isfinite(c["loss"]).any() else np.nan
+            gens = f"{min(c['gens'])}" + ("" if min(c["gens"]) == max(c["gens"]) else "+")
+            parts.append(f"{float(mean):.2f} +- {float(ci):.2f} | {loss:.3g} | {k}, {gens}")
+            csv_rows.append({"variant": v, "n_req": n, "final_G": float(mean),
+                             "ci95": float(ci), "critic_loss": loss, "seeds": k,
+                             "min_generations": min(c["gens"])})  # fmt: skip
+        lines.append(f"| {v} | " + " | ".join(parts) + " |")
+    (OUT / "ablation.md").write_text("\n".join(lines) + "\n")
+    with open(OUT / "ablation.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(csv_rows[0]))
+        writer.writeheader()
+        writer.writerows(csv_rows)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--root", default="runs/sweeps")
@@ -157,7 +206,11 @@ def main() -> None:
             key=lambda r: f"{r.fields['method']} | {r.fields['n_req']} | {motion_label(r)}",
         )
 
+    if (root / "ablation").exists():
+        ablation_table(root / "ablation", args.last)
     if not summary_rows:
+        if (root / "ablation").exists():
+            return
         raise SystemExit(f"no sweeps found under {root}")
     # Sweeps not present under --root keep their rows and tables from the previous run.
     kept_rows = []
