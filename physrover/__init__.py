@@ -12,6 +12,7 @@ from physrover.config import ConfigError, DomainConfig
 from physrover.domain import credit as _credit  # noqa: F401  (registers the credit signals)
 from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
 from physrover.learn import fitness as _fitness  # noqa: F401  (registers the fitness methods)
+from physrover.marl import configs as _trainers  # noqa: F401  (registers the trainers, no torch)
 
 __version__ = "0.1.0"
 __all__ = [

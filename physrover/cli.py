@@ -82,6 +82,11 @@ def cmd_methods(args: argparse.Namespace) -> int:
     print(f"{'method':{width}}  {'paper':{sections}}  fitness of a policy")
     for name, spec in FITNESS_METHODS.items():
         print(f"{name:{width}}  {spec.section:{sections}}  {spec.summary}")
+    from physrover.registry import TRAINERS
+
+    print("\ngradient-based trainers (their table: [NAME]; length: total_episodes):")
+    for name, spec in TRAINERS.items():
+        print(f"{name:{width}}  {spec.reference:{sections}}  {spec.summary}")
     print('\nchoose with: physrover train --method NAME  (or [learn] method = "NAME")')
     return 0
 
@@ -108,9 +113,16 @@ def cmd_train(args: argparse.Namespace) -> int:
                 "--resume continues a run with its own config; only --generations applies"
             )
         out = Path(args.resume)
-        target = args.generations or load_run_config(out).learn.generations
+        run_config = load_run_config(out)
+        target = args.generations or run_config.learn.generations
+        if run_config.trainer is not None:  # a gradient-based run: its length is in episodes
+            trainer = run_config.trainer
+            target = -(-trainer.total_episodes // trainer.num_envs)
         done = last_checkpoint(out)
         if done is not None and done >= target:
+            if run_config.trainer is not None:
+                print(f"{out} is finished: {done} iterations, its total_episodes")
+                return 0
             print(
                 f"{out} is already at {done} generations; to extend it: "
                 f"physrover train --resume {out} --generations {done + 1000}"

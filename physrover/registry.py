@@ -85,3 +85,7 @@ FITNESS_METHODS: Registry = Registry("fitness method")
 #: Credit signals, the immediate feedback of each rover: name -> a
 #: :class:`physrover.domain.credit.Credit`.
 CREDITS: Registry = Registry("credit signal")
+
+#: Gradient-based trainers (the MARL baselines): name -> a
+#: :class:`physrover.marl.configs.TrainerSpec`.
+TRAINERS: Registry = Registry("trainer")

@@ -69,7 +69,10 @@ def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
 
 
 def save_state(run_dir: Path, ccea: CCEA) -> None:
+    """Checkpoint a learner (the CCEA, or a gradient-based trainer: anything with
+    ``state()``, ``generation`` and ``champion_genomes()``) into ``run_dir``."""
     arrays, meta = ccea.state()
+    meta = {**meta, "generation": ccea.generation}
 
     def write_npz(p: Path) -> None:
         with open(p, "wb") as f:
@@ -112,7 +115,7 @@ def load_state(run_dir: Path, ccea: CCEA) -> None:
         arrays = {k: data[k] for k in data.files}
     if int(arrays.pop("generation")) != meta["generation"]:
         raise RunError(f"{run_dir}: {STATE_NPZ} and {STATE_JSON} disagree (interrupted write)")
-    if arrays["genomes"].shape != ccea.genomes.shape:
+    if "genomes" in arrays and arrays["genomes"].shape != ccea.genomes.shape:
         raise RunError(f"{run_dir}: the saved state does not match {CONFIG}")
     ccea.load_state(arrays, meta)
 
@@ -139,13 +142,15 @@ def last_checkpoint(run_dir: Path) -> int | None:
         return None
 
 
-def _write_metrics(path: Path, rows: list[dict]) -> None:
+def _write_metrics(path: Path, rows: list[dict], header: list[str] | None = None) -> None:
+    header = header or stats_header()
+
     def write(p: Path) -> None:
         with open(p, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=stats_header())
+            writer = csv.DictWriter(f, fieldnames=header)
             writer.writeheader()
             for row in rows:
-                writer.writerow({k: _fmt(row[k]) for k in stats_header()})
+                writer.writerow({k: _fmt(row[k]) for k in header})
 
     _atomic_write(path, write)
 
@@ -158,12 +163,12 @@ def _fmt(value: float) -> str:
     return "nan" if isinstance(value, float) and math.isnan(value) else repr(float(value))
 
 
-def prepare_run_dir(out: Path, config: RunConfig) -> None:
+def prepare_run_dir(out: Path, config: RunConfig, header: list[str] | None = None) -> None:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise RunError(f"{out} exists and is not empty; use --resume {out} to continue it")
     out.mkdir(parents=True, exist_ok=True)
     (out / CONFIG).write_text(config.to_toml())
-    _write_metrics(out / METRICS, [])
+    _write_metrics(out / METRICS, [], header)
 
 
 def find_runs(paths: list[str | Path]) -> list[Path]:
@@ -247,6 +252,12 @@ def train(
             raise ConfigError("config", "a config is needed to start a run")
         if generations is not None:
             config = config.with_overrides({"generations": generations})
+    if config.trainer is not None:  # a gradient-based baseline, not the CCEA
+        from physrover.trainer_runs import train_trainer
+
+        return train_trainer(config, out, resume=resume, progress=progress,
+                             tensorboard=tensorboard)  # fmt: skip
+    if not resume:
         prepare_run_dir(out, config)
     log = TensorBoardLog(out) if tensorboard else None
     total = config.learn.generations
@@ -310,7 +321,11 @@ class TensorBoardLog:
         self.writer = SummaryWriter(log_dir=str(out / "tensorboard"))
 
     def write(self, stats: GenerationStats) -> None:
-        row = asdict(stats)
+        self.write_row(asdict(stats))
+
+    def write_row(self, row: dict) -> None:
+        """One metrics row ({column: value}, with ``generation`` the step)."""
+        row = dict(row)
         step = row.pop("generation")
         for name, value in row.items():
             self.writer.add_scalar(name, value, global_step=step)

@@ -18,7 +18,8 @@ LAYERS = [
     {"render"},  # frames and videos of the domain (the envs' render_mode)
     {"envs"},  # gymnasium envs over the world
     {"learn", "marl"},  # learners and MARL interfaces over the envs
-    {"runs", "evaluate", "plots"},  # run directories and what is read from them
+    # run directories (the CCEA's and the gradient-based trainers') and what reads them
+    {"runs", "trainer_runs", "evaluate", "plots"},
     {"playback", "sweep", "bench"},
     {"cli"},
 ]

@@ -18,86 +18,14 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
-from typing import ClassVar
 
 import numpy as np
 import torch
 from torch import nn
 
-from physrover.config import ConfigBase, DomainConfig, check, check_choice
+from physrover.config import DomainConfig
 from physrover.envs import RoverVectorEnv, team_spaces
-
-REWARDS = ("G", "D")
-"""Credit signals a baseline trains on: "G" every rover gets the team's increase of G at each
-step (its rewards sum to G); "D" each rover gets its difference evaluation D_i (Eq. 1) at the
-last step and 0 before (its rewards sum to D_i)."""
-
-
-# ----------------------------------------------------------------------------------------------
-# Config
-# ----------------------------------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True)
-class MARLConfig(ConfigBase):
-    """Fields every gradient-based baseline has; subclasses add the algorithm's own."""
-
-    section: ClassVar[str] = "marl"
-
-    num_envs: int = 32
-    """Teams run in parallel on the vector env; one iteration plays one episode per team."""
-    total_episodes: int = 250_000
-    """Training episodes of the whole run (the CCEA's budget at the paper's settings: 5000
-    generations x 50 teams); the run has ceil(total_episodes / num_envs) iterations
-    (:attr:`Trainer.total_iterations`). Read by the run loop, not the trainer."""
-    hidden: int = 32
-    """Hidden units of each rover's policy, n_obs -> hidden -> 2 (ReLU, then tanh), the
-    CCEA's policy shape, so a trained actor exports as a CCEA genome."""
-    reward: str = "G"
-    """Credit signal: "G" (team reward at every step) or "D" (each rover's difference
-    evaluation at the last step); see :data:`REWARDS`."""
-    time_feature: bool = True
-    """Give the critics the elapsed fraction of the episode, t / steps, as an extra input:
-    episodes end at a fixed step, so without it values are not a function of their input
-    (Pardo et al. 2018, "Time Limits in Reinforcement Learning"). The actors never see it."""
-    eval_episodes: int = 10
-    """Fresh episodes of the current (deterministic) policies at each logging point."""
-    log_every: int = 1
-    """Evaluate (and report ``eval_G``) every this many iterations."""
-    seed: int = 0
-    """Seeds every random stream: network initialisation, sampling, env start states."""
-    checkpoint_every: int = 50
-    """Iterations between checkpoints (read by the run loop, not the trainer)."""
-
-    def __post_init__(self) -> None:
-        self._coerce_fields()
-        for name in (
-            "num_envs",
-            "total_episodes",
-            "hidden",
-            "eval_episodes",
-            "log_every",
-            "checkpoint_every",
-        ):
-            value = getattr(self, name)
-            check(value >= 1, name, f"must be >= 1, got {value}")
-        check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
-        check_choice(self.reward, REWARDS, "reward")
-
-    def check_positive(self, *names: str) -> None:
-        """ConfigError naming the first of ``names`` that is not a finite number > 0."""
-        for name in names:
-            value = getattr(self, name)
-            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
-
-    def check_unit(self, *names: str, closed: bool = True) -> None:
-        """ConfigError naming the first of ``names`` outside [0, 1] (``closed=False``: (0, 1])."""
-        for name in names:
-            value = getattr(self, name)
-            ok = 0.0 <= value <= 1.0 if closed else 0.0 < value <= 1.0
-            interval = "[0, 1]" if closed else "(0, 1]"
-            check(ok, name, f"must be in {interval}, got {value}")
-
+from physrover.marl.configs import REWARDS, MARLConfig  # noqa: F401  (re-exported)
 
 # ----------------------------------------------------------------------------------------------
 # Seeding and networks
@@ -429,6 +357,11 @@ class Trainer:
         self.eval_env.set_rng_states(meta["eval_env_rng"])
         extra = {k[len("extra/") :]: v for k, v in arrays.items() if k.startswith("extra/")}
         self._load_extra_state(extra, meta["extra"])
+
+    @property
+    def generation(self) -> int:
+        """Iterations completed, under the CCEA's name for what run directories count."""
+        return self.iterations
 
     def champion_genomes(self) -> np.ndarray:
         """(R, P) float32: :meth:`policy_genomes`, under the CCEA's name for the team that

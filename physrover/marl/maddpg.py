@@ -33,76 +33,22 @@ run of ``total_episodes`` episodes has ceil(total_episodes / num_envs) iteration
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 from collections.abc import Mapping
-from typing import ClassVar
 
 import numpy as np
 import torch
 from torch import nn
 
-from physrover.config import DomainConfig, check
+from physrover.config import DomainConfig
 from physrover.marl.common import (
-    MARLConfig,
     Trainer,
     ccea_genome,
     run_episodes,
     soft_update,
     to_tensor,
 )
-
-
-@dataclasses.dataclass(frozen=True)
-class MADDPGConfig(MARLConfig):
-    """MADDPG hyper-parameters (defaults after Lowe et al. 2017 where the domain allows)."""
-
-    section: ClassVar[str] = "maddpg"
-
-    critic_hidden: int = 64
-    """Hidden units of each critic's two hidden layers (ReLU)."""
-    actor_lr: float = 1e-3
-    """Adam learning rate of the actors."""
-    critic_lr: float = 1e-3
-    """Adam learning rate of the critics."""
-    gamma: float = 0.95
-    """Discount factor (Lowe et al.: 0.95)."""
-    tau: float = 0.01
-    """Soft update rate of the target networks (Lowe et al.: 0.01)."""
-    batch_size: int = 1024
-    """Team transitions per mini-batch (Lowe et al.: 1024)."""
-    buffer_capacity: int = 100_000
-    """Replay capacity, team transitions; the oldest are overwritten when full."""
-    noise_std: float = 0.1
-    """Standard deviation of the Gaussian exploration noise added to every action component
-    (fixed over the run); the noisy action is clipped to [-1, 1]."""
-    update_every: int = 100
-    """Team transitions collected per update of every critic and actor (Lowe et al. train
-    every 100 steps)."""
-    warmup_steps: int = 25_600
-    """Team transitions in the buffer before the first update (Lowe et al.: batch x 25);
-    before it the actors act (with noise) but do not learn."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        for name in ("critic_hidden", "batch_size", "buffer_capacity", "update_every"):
-            value = getattr(self, name)
-            check(value >= 1, name, f"must be >= 1, got {value}")
-        check(self.warmup_steps >= 0, "warmup_steps", f"must be >= 0, got {self.warmup_steps}")
-        check(
-            self.buffer_capacity >= self.batch_size,
-            "buffer_capacity",
-            f"must be >= batch_size = {self.batch_size}, got {self.buffer_capacity}",
-        )
-        self.check_positive("actor_lr", "critic_lr")
-        self.check_unit("gamma")
-        self.check_unit("tau", closed=False)
-        check(
-            self.noise_std >= 0 and math.isfinite(self.noise_std),
-            "noise_std",
-            f"must be >= 0, got {self.noise_std}",
-        )
-
+from physrover.marl.configs import MADDPGConfig
 
 # ----------------------------------------------------------------------------------------------
 # Networks: R independent MLPs as stacked weights

@@ -31,17 +31,14 @@ has ceil(total_episodes / num_envs) iterations.
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from typing import ClassVar
 
 import numpy as np
 import torch
 from torch import nn
 
-from physrover.config import ConfigError, DomainConfig, check
+from physrover.config import ConfigError, DomainConfig
 from physrover.marl.common import (
-    MARLConfig,
     Trainer,
     ccea_genome,
     gae,
@@ -49,61 +46,9 @@ from physrover.marl.common import (
     run_episodes,
     to_tensor,
 )
+from physrover.marl.configs import MAPPOConfig
 
 LOG_SQRT_2PI = 0.5 * math.log(2 * math.pi)
-
-
-@dataclasses.dataclass(frozen=True)
-class MAPPOConfig(MARLConfig):
-    """MAPPO / IPPO hyper-parameters (defaults after Yu et al. 2022 and CleanRL)."""
-
-    section: ClassVar[str] = "mappo"
-
-    value_hidden: int = 64
-    """Hidden units of the value network's two hidden layers (tanh)."""
-    lr: float = 3e-4
-    """Adam learning rate of the policy and the value network."""
-    gamma: float = 0.99
-    """Discount factor."""
-    gae_lambda: float = 0.95
-    """GAE's lambda."""
-    clip: float = 0.2
-    """PPO's clipping range of the probability ratio (and of the value update)."""
-    epochs: int = 5
-    """Passes over an iteration's data."""
-    minibatches: int = 4
-    """Mini-batches per pass; each holds steps x num_envs / minibatches team steps."""
-    entropy_coef: float = 0.0
-    """Weight of the entropy bonus."""
-    value_coef: float = 0.5
-    """Weight of the value loss."""
-    max_grad_norm: float = 0.5
-    """Global gradient norm clip."""
-    init_log_std: float = -0.5
-    """Initial log standard deviation of the Gaussian (learnt, state-independent)."""
-    norm_advantages: bool = True
-    """Standardise advantages within each mini-batch."""
-    clip_value_loss: bool = True
-    """PPO's clipped value loss (the value moves at most ``clip`` from its rollout value)."""
-    centralised_critic: bool = True
-    """True: MAPPO, values from the whole team's observations; False: IPPO, each rover's
-    value from its own observation."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        for name in ("value_hidden", "epochs", "minibatches"):
-            value = getattr(self, name)
-            check(value >= 1, name, f"must be >= 1, got {value}")
-        self.check_positive("lr", "clip", "max_grad_norm")
-        self.check_unit("gamma", "gae_lambda")
-        for name in ("entropy_coef", "value_coef"):
-            value = getattr(self, name)
-            check(value >= 0 and math.isfinite(value), name, f"must be >= 0, got {value}")
-        check(
-            math.isfinite(self.init_log_std),
-            "init_log_std",
-            f"must be finite, got {self.init_log_std}",
-        )
 
 
 class Agent(nn.Module):

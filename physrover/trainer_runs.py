@@ -1,0 +1,104 @@
+"""Run directories of the gradient-based trainers (``physrover train --method mappo|maddpg``).
+
+The same layout as a CCEA run (:mod:`physrover.runs`): config.toml (with the trainer's table,
+e.g. ``[mappo]``), metrics.csv, ``champions/gen_N.npy`` (the current policies as CCEA
+genomes, so ``render`` and ``evaluate`` play them), state.npz/state.json (networks,
+optimisers, replay buffer, every generator), and a resumed run bit-identical to an
+uninterrupted one. A row of metrics.csv is one iteration (``generation`` counts
+iterations, from 1) with the CCEA's columns plus ``episodes`` and ``env_steps``: training
+episodes and team steps so far, the axis ``physrover curves --x episodes`` draws.
+``fitness_mean`` is NaN (there is none); ``critic_loss`` is the value loss (MAPPO) or the
+critics' loss (MADDPG). The run's length is the trainer's ``total_episodes``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+from physrover.config import RunConfig
+from physrover.learn.ccea import stats_header
+from physrover.progress import Progress
+from physrover.registry import TRAINERS
+from physrover.runs import (
+    METRICS,
+    STATE_JSON,
+    TensorBoardLog,
+    _fmt,
+    _write_metrics,
+    load_run_config,
+    load_state,
+    prepare_run_dir,
+    read_metrics,
+    save_state,
+)
+
+EXTRA_COLUMNS = ["episodes", "env_steps"]
+
+
+def metrics_header() -> list[str]:
+    """metrics.csv columns of a trainer's run: the CCEA's, then episodes and env_steps."""
+    return stats_header() + EXTRA_COLUMNS
+
+
+def metrics_row(stats: dict) -> dict:
+    """A metrics.csv row from the dict a trainer's ``iteration()`` returns."""
+    loss = stats.get("value_loss", stats.get("critic_loss", math.nan))
+    return {
+        "generation": int(stats["iteration"]),
+        "eval_G": float(stats.get("eval_G", math.nan)),
+        "train_G_mean": float(stats["train_G_mean"]),
+        "fitness_mean": math.nan,
+        "critic_loss": float(loss),
+        "wall_seconds": float(stats["wall_seconds"]),
+        "episodes": int(stats["episodes"]),
+        "env_steps": int(stats["env_steps"]),
+    }
+
+
+def train_trainer(
+    config: RunConfig, out: str | Path, *, resume: bool, progress: bool, tensorboard: bool
+) -> Path:
+    """Train (or continue, with ``resume``) a gradient-based baseline in run directory ``out``."""
+    out = Path(out)
+    if resume:
+        config = load_run_config(out)
+    else:
+        prepare_run_dir(out, config, metrics_header())
+    spec = TRAINERS[config.learn.method]
+    trainer = spec.load()(config.trainer, config.domain)
+    rows: list[dict] = []
+    if resume and (out / STATE_JSON).exists():
+        load_state(out, trainer)
+        rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= trainer.iterations]
+    if resume:
+        _write_metrics(out / METRICS, rows, metrics_header())
+    log = TensorBoardLog(out) if tensorboard else None
+    total = trainer.total_iterations
+    label = f"{config.learn.method} iteration"
+    bar = Progress(total, label, trainer.iterations, unit="it") if progress else None
+    best = max((r["eval_G"] for r in rows), default=math.nan)
+    every = config.learn.checkpoint_every
+    with open(out / METRICS, "a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=metrics_header())
+        while trainer.iterations < total:
+            row = metrics_row(trainer.iteration())
+            writer.writerow({k: _fmt(v) for k, v in row.items()})
+            if not math.isnan(row["eval_G"]):
+                best = row["eval_G"] if math.isnan(best) else max(best, row["eval_G"])
+            done = trainer.iterations
+            if done % every == 0 or done == total:
+                f.flush()
+                save_state(out, trainer)
+            if log:
+                log.write_row(row)
+            if bar:
+                bar.update(done, **{"eval G": row["eval_G"], "best G": best})
+    if bar:
+        bar.close()
+    if log:
+        log.close()
+    if not (out / STATE_JSON).exists():
+        save_state(out, trainer)
+    return out

@@ -1,0 +1,87 @@
+"""Gradient-based trainers through the run directory: `physrover train --method mappo|maddpg`."""
+
+import numpy as np
+import pytest
+from conftest import comparable_rows
+
+from physrover.cli import main
+from physrover.config import ConfigError, RunConfig
+from physrover.evaluate import evaluate_run
+from physrover.learn.ccea import stats_header
+from physrover.marl.common import Trainer
+from physrover.plots import load_runs
+from physrover.runs import read_metrics
+
+TINY = ["--set", "n_rovers=3", "--set", "n_req=1", "--set", "steps=10",
+        "--set", "poi_ring_radius=5.0", "--set", "num_envs=4", "--set", "total_episodes=16",
+        "--set", "eval_episodes=2", "--set", "checkpoint_every=2", "--quiet"]  # fmt: skip
+MADDPG = ["--set", "warmup_steps=40", "--set", "batch_size=32", "--set", "buffer_capacity=200",
+          "--set", "update_every=10"]  # fmt: skip
+
+
+@pytest.mark.parametrize("method", ["mappo", "maddpg"])
+def test_train_writes_a_run_directory_the_other_commands_read(method, tmp_path, capsys):
+    out = tmp_path / method
+    extra = MADDPG if method == "maddpg" else []
+    assert main(["train", "--method", method, *TINY, *extra, "--out", str(out)]) == 0
+    header = (out / "metrics.csv").read_text().splitlines()[0].split(",")
+    assert header == stats_header() + ["episodes", "env_steps"]
+    rows = read_metrics(out / "metrics.csv")
+    assert [r["generation"] for r in rows] == [1, 2, 3, 4]
+    assert [r["episodes"] for r in rows] == [4, 8, 12, 16]
+    assert [r["env_steps"] for r in rows] == [40, 80, 120, 160]
+    assert sorted(p.name for p in (out / "champions").iterdir()) == [
+        "gen_000002.npy",
+        "gen_000004.npy",
+    ]
+    config = RunConfig.load(out / "config.toml")
+    assert config.learn.method == method and config.trainer.num_envs == 4
+    assert config.trainer.seed == config.learn.seed and config.trainer.eval_episodes == 2
+    assert load_runs([out])[0].episodes.tolist() == [4, 8, 12, 16]  # curves --x episodes
+    assert len(evaluate_run(out, episodes=3).G) == 3  # the policies as CCEA genomes
+    capsys.readouterr()
+    assert main(["train", "--resume", str(out)]) == 0
+    assert "is finished: 4 iterations" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("method", ["mappo", "maddpg"])
+def test_a_crashed_run_resumes_bit_identically(method, tmp_path, monkeypatch):
+    extra = MADDPG if method == "maddpg" else []
+    full = tmp_path / "full"
+    assert main(["train", "--method", method, *TINY, *extra, "--out", str(full)]) == 0
+    real = Trainer.iteration
+
+    def crash_after_3(self):
+        if self.iterations == 3:
+            raise KeyboardInterrupt
+        return real(self)
+
+    crashed = tmp_path / "crashed"
+    monkeypatch.setattr(Trainer, "iteration", crash_after_3)
+    assert main(["train", "--method", method, *TINY, *extra, "--out", str(crashed)]) == 130
+    monkeypatch.setattr(Trainer, "iteration", real)
+    assert main(["train", "--resume", str(crashed), "--quiet"]) == 0
+    assert comparable_rows(read_metrics(crashed / "metrics.csv")) == comparable_rows(
+        read_metrics(full / "metrics.csv")
+    )
+    a, b = np.load(full / "state.npz"), np.load(crashed / "state.npz")
+    assert set(a.files) == set(b.files)
+    for key in a.files:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_trainer_tables_in_the_config():
+    config = RunConfig().with_overrides({"method": "mappo", "mappo.lr": 1e-3, "clip": 0.1})
+    assert (config.trainer.lr, config.trainer.clip) == (1e-3, 0.1)
+    assert RunConfig.from_toml(config.to_toml()) == config
+    assert "[mappo]" in config.to_toml() and "\nseed" not in config.to_toml().split("[mappo]")[1]
+    with pytest.raises(ConfigError, match="is in \\[learn\\] and \\[maddpg\\]"):
+        RunConfig().with_overrides({"method": "maddpg", "critic_lr": 1e-3})
+    maddpg = RunConfig().with_overrides({"method": "maddpg", "maddpg.critic_lr": 2e-3})
+    assert maddpg.trainer.critic_lr == 2e-3 and maddpg.learn.critic_lr == 5e-6
+    with pytest.raises(ConfigError, match="set seed in \\[learn\\]"):
+        RunConfig.from_toml('[learn]\nmethod = "mappo"\n[mappo]\nseed = 3\n')
+    with pytest.raises(ConfigError, match="but method is 'max-critic'"):
+        RunConfig.from_toml("[mappo]\nlr = 0.1\n")
+    with pytest.raises(ConfigError, match="lr: unknown config field"):
+        RunConfig().with_overrides({"lr": 0.1})  # the CCEA has no such field
