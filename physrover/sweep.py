@@ -129,7 +129,10 @@ def run_status(spec: RunSpec) -> str:
         return "new"
     state = out / "state.json"
     if state.exists():
-        generations = RunConfig.from_toml(spec.config_toml).learn.generations
+        config = RunConfig.from_toml(spec.config_toml)
+        generations = config.learn.generations
+        if config.trainer is not None:  # a gradient-based run lasts total_episodes
+            generations = -(-config.trainer.total_episodes // config.trainer.num_envs)
         done = json.loads(state.read_text())["generation"] >= generations
         return "done" if done else "partial"
     return "partial"

@@ -85,3 +85,19 @@ def test_trainer_tables_in_the_config():
         RunConfig.from_toml("[mappo]\nlr = 0.1\n")
     with pytest.raises(ConfigError, match="lr: unknown config field"):
         RunConfig().with_overrides({"lr": 0.1})  # the CCEA has no such field
+
+
+def test_a_sweep_runs_trainers_and_then_skips_them(tmp_path):
+    from physrover.sweep import Sweep, run_status, run_sweep
+
+    path = tmp_path / "marl.toml"
+    path.write_text(
+        '[sweep]\nname = "m"\nseeds = 1\n[base.domain]\nn_rovers = 3\nn_req = 1\nsteps = 10\n'
+        "[base.learn]\neval_episodes = 2\ncheckpoint_every = 1\n[grid]\nn_req = [1]\n"
+        '[[variants]]\nmethod = "mappo"\ntotal_episodes = 8\nnum_envs = 4\n'
+    )
+    specs = Sweep.load(path).runs(tmp_path / "sweeps")
+    report = run_sweep(specs, workers=1, progress=False)
+    assert not report.failed and len(report.finished) == 1
+    assert [run_status(s) for s in specs] == ["done"]
+    assert run_sweep(specs, workers=1, progress=False).skipped == 1
