@@ -96,6 +96,60 @@ def ablation_table(sweep: Path, last: int) -> None:
         writer.writerows(csv_rows)
 
 
+def _max_critic_at(n_req: int, episodes: int) -> str:
+    """The max critic's mean eval G (fig4-7, 20-generation moving mean, 5 seeds) after the
+    generation at which it had played ``episodes`` training episodes (50 a generation)."""
+    path = OUT / f"fig4-6_curves_nreq{n_req}.csv"
+    if not path.exists():
+        return "n/a"
+    with open(path, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["group"] == "max-critic"]
+    generation = episodes // 50
+    first = int(rows[0]["generation"]) if rows else 1  # 0 in files written by 0.1.0
+    for row in rows:
+        if int(row["generation"]) - first + 1 == generation:
+            return f"{float(row['mean']):.2f} +- {float(row['ci95_half_width']):.2f}"
+    return "n/a"
+
+
+def marl_table(sweep: Path, last: int) -> None:
+    """results/marl.{md,csv} and marl_curves_nreq*.png: the gradient-based baselines' final
+    eval G (mean of the last ``last`` iterations, 95% CI over seeds), the share of seeds
+    that learn, and the max critic after as many training episodes (fig4-7's curves)."""
+    runs = [r for r in plots.load_runs(find_runs([sweep])) if len(r.eval_G)]
+    cells = defaultdict(lambda: {"final": [], "episodes": []})
+    for run in runs:
+        cell = cells[(run.fields["method"], run.fields["n_req"])]
+        cell["final"].append(float(run.eval_G[-last:].mean()))
+        cell["episodes"].append(int(run.episodes[-1]))
+    for n_req in sorted({n for _, n in cells}):
+        subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
+        table = plots.curve_table(subset, smooth=20)
+        plots.plot_curves(table, OUT / f"marl_curves_nreq{n_req}.png",
+                          f"15 rovers, 4 POIs, n_req = {n_req}", x="episodes")  # fmt: skip
+    lines = [
+        "| n_req | method | episodes | final G (mean +- 95% CI) | seeds that learn | "
+        "max critic after as many episodes |",
+        "|---|---|---|---|---|---|",
+    ]
+    csv_rows = []
+    for (method, n_req), c in sorted(cells.items(), key=lambda kv: (kv[0][1], kv[0][0])):
+        mean, ci, k = plots.mean_ci(np.array(c["final"]))
+        episodes = min(c["episodes"])
+        learned = float(np.mean(np.array(c["final"]) > 0.5))
+        reference = _max_critic_at(n_req, episodes)
+        lines.append(f"| {n_req} | {method} | {episodes} | {float(mean):.2f} +- {float(ci):.2f}"
+                     f" | {learned:.0%} of {k} | {reference} |")  # fmt: skip
+        csv_rows.append({"method": method, "n_req": n_req, "episodes": episodes,
+                         "final_G": float(mean), "ci95": float(ci), "seeds": k,
+                         "learned": learned, "max_critic_same_episodes": reference})  # fmt: skip
+    (OUT / "marl.md").write_text("\n".join(lines) + "\n")
+    with open(OUT / "marl.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(csv_rows[0]))
+        writer.writeheader()
+        writer.writerows(csv_rows)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--root", default="runs/sweeps")
@@ -208,8 +262,10 @@ def main() -> None:
 
     if (root / "ablation").exists():
         ablation_table(root / "ablation", args.last)
+    if (root / "marl").exists():
+        marl_table(root / "marl", args.last)
     if not summary_rows:
-        if (root / "ablation").exists():
+        if (root / "ablation").exists() or (root / "marl").exists():
             return
         raise SystemExit(f"no sweeps found under {root}")
     # Sweeps not present under --root keep their rows and tables from the previous run.
