@@ -58,7 +58,11 @@ def ablation_table(sweep: Path, last: int) -> None:
     from physrover.config import LearnConfig
 
     paper = LearnConfig(method="max-critic").to_dict()
-    runs = [r for r in plots.load_runs(find_runs([sweep])) if len(r.eval_G)]
+    # finished runs only: a run still going would be scored on its last generations so far
+    runs = [
+        r for r in plots.load_runs(find_runs([sweep]))
+        if len(r.eval_G) and len(r.eval_G) >= r.fields["generations"]
+    ]  # fmt: skip
     cells = defaultdict(lambda: {"final": [], "loss": [], "gens": []})
     for run in runs:
         changed = [f"{f}={run.fields[f]}" for f in ABLATED if run.fields[f] != paper[f]]
@@ -112,11 +116,21 @@ def _max_critic_at(n_req: int, episodes: int) -> str:
     return "n/a"
 
 
+def _finished(run_dir: Path) -> bool:
+    """Whether a run (CCEA or trainer) reached the length its config asks for."""
+    from physrover.sweep import RunSpec, run_status
+
+    spec = RunSpec(run_dir.name, (run_dir / "config.toml").read_text(), str(run_dir))
+    return run_status(spec) == "done"
+
+
 def marl_table(sweep: Path, last: int) -> None:
-    """results/marl.{md,csv} and marl_curves_nreq*.png: the gradient-based baselines' final
-    eval G (mean of the last ``last`` iterations, 95% CI over seeds), the share of seeds
-    that learn, and the max critic after as many training episodes (fig4-7's curves)."""
+    """results/marl.{md,csv} and marl_curves_nreq*.png (finished runs only): the
+    gradient-based baselines' final eval G (mean of the last ``last`` iterations, 95% CI
+    over seeds), the share of seeds that learn, and the max critic after as many training
+    episodes (fig4-7's curves)."""
     runs = [r for r in plots.load_runs(find_runs([sweep])) if len(r.eval_G)]
+    runs = [r for r in runs if (r.path / "state.json").exists() and _finished(r.path)]
     cells = defaultdict(lambda: {"final": [], "episodes": []})
     for run in runs:
         cell = cells[(run.fields["method"], run.fields["n_req"])]
