@@ -83,16 +83,21 @@ def differing_fields(fields: list[dict], skip: tuple[str, ...] = ()) -> list[str
     """Names of the config fields (in config order) whose value is not the same in all of
     ``fields`` (one dict per run), leaving out ``method``, :data:`NOT_GROUPED` and ``skip``."""
     left_out = {"method", *NOT_GROUPED, *skip}
+    # then a trainer's own fields (``mappo.lr``), which only some runs have
+    extra = sorted({name for f in fields for name in f} - set(_FIELD_ORDER))
     return [
         name
-        for name in _FIELD_ORDER
-        if name not in left_out and len({format_value(f[name]) for f in fields}) > 1
+        for name in (*_FIELD_ORDER, *extra)
+        if name not in left_out and len({format_value(f.get(name)) for f in fields}) > 1
     ]
 
 
 def group_label(fields: dict, names: list[str]) -> str:
-    """``method name=value ...`` for a run's ``fields`` and the label fields ``names``."""
-    return " ".join([fields["method"]] + [f"{n}={format_value(fields[n])}" for n in names])
+    """``method name=value ...`` for a run's ``fields`` and the label fields ``names`` (a
+    field the run does not have is left out)."""
+    return " ".join(
+        [fields["method"]] + [f"{n}={format_value(fields[n])}" for n in names if n in fields]
+    )
 
 
 def load_runs(
@@ -107,12 +112,17 @@ def load_runs(
     all_fields = []
     for path in paths:
         config = load_run_config(path)
-        all_fields.append({**config.domain.to_dict(), **config.learn.to_dict()})
+        fields = {**config.domain.to_dict(), **config.learn.to_dict()}
+        if config.trainer is not None:  # a gradient-based run: its own table, by table.field
+            section = config.trainer.section
+            fields |= {f"{section}.{k}": v for k, v in config.trainer.to_dict().items()}
+        all_fields.append(fields)
     for name, option in [(n, "--by") for n in by] + ([(x, "--final")] if x else []):
         if name not in _FIELD_ORDER:
             raise ConfigError(name, f"not a config field ({option})")
     split = set(differing_fields(all_fields, skip=(x,) if x else ())) | set(by)
-    names = [n for n in _FIELD_ORDER if n in split and n not in ("method", x)]
+    order = list(_FIELD_ORDER) + sorted(split - set(_FIELD_ORDER))
+    names = [n for n in order if n in split and n not in ("method", x)]
     runs = []
     for path, fields in zip(paths, all_fields, strict=True):
         rows = read_metrics(path / METRICS)

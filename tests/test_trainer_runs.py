@@ -101,3 +101,16 @@ def test_a_sweep_runs_trainers_and_then_skips_them(tmp_path):
     assert not report.failed and len(report.finished) == 1
     assert [run_status(s) for s in specs] == ["done"]
     assert run_sweep(specs, workers=1, progress=False).skipped == 1
+
+
+def test_curves_never_pool_trainer_runs_of_different_hyper_parameters(tmp_path):
+    from physrover.plots import curve_table
+
+    runs = []
+    for lr in ("0.001", "0.003"):
+        out = tmp_path / f"lr{lr}"
+        argv = ["train", "--method", "mappo", *TINY, "--set", f"lr={lr}", "--out", str(out)]
+        assert main(argv) == 0
+        runs.append(out)
+    table = curve_table(load_runs(runs))
+    assert sorted(table) == ["mappo mappo.lr=0.001", "mappo mappo.lr=0.003"]
