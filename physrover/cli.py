@@ -114,10 +114,9 @@ def cmd_train(args: argparse.Namespace) -> int:
             )
         out = Path(args.resume)
         run_config = load_run_config(out)
-        target = args.generations or run_config.learn.generations
-        if run_config.trainer is not None:  # a gradient-based run: its length is in episodes
-            trainer = run_config.trainer
-            target = -(-trainer.total_episodes // trainer.num_envs)
+        target = run_config.length
+        if args.generations and run_config.trainer is None:
+            target = args.generations
         done = last_checkpoint(out)
         if done is not None and done >= target:
             if run_config.trainer is not None:

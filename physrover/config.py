@@ -472,6 +472,12 @@ class RunConfig:
         shared = {name: getattr(self.learn, name) for name in SHARED_WITH_LEARN}
         object.__setattr__(self, "trainer", trainer.replace(**shared))
 
+    @property
+    def length(self) -> int:
+        """What the run's checkpoints count when it is finished: [learn] generations, or a
+        gradient-based trainer's iterations (its total_episodes / num_envs, rounded up)."""
+        return self.trainer.total_iterations if self.trainer is not None else self.learn.generations
+
     def _tables(self) -> dict[str, dict[str, Any]]:
         tables = {"domain": self.domain.to_dict(), "learn": self.learn.to_dict()}
         if self.trainer is not None:

@@ -129,11 +129,8 @@ def run_status(spec: RunSpec) -> str:
         return "new"
     state = out / "state.json"
     if state.exists():
-        config = RunConfig.from_toml(spec.config_toml)
-        generations = config.learn.generations
-        if config.trainer is not None:  # a gradient-based run lasts total_episodes
-            generations = -(-config.trainer.total_episodes // config.trainer.num_envs)
-        done = json.loads(state.read_text())["generation"] >= generations
+        length = RunConfig.from_toml(spec.config_toml).length
+        done = json.loads(state.read_text())["generation"] >= length
         return "done" if done else "partial"
     return "partial"
 

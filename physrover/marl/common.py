@@ -239,7 +239,7 @@ class Trainer:
     @property
     def total_iterations(self) -> int:
         """Iterations of the whole run: ceil(total_episodes / num_envs)."""
-        return -(-self.config.total_episodes // self.config.num_envs)
+        return self.config.total_iterations
 
     @property
     def episodes(self) -> int:

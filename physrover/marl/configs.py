@@ -73,6 +73,11 @@ class MARLConfig(ConfigBase):
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         check_choice(self.reward, REWARDS, "reward")
 
+    @property
+    def total_iterations(self) -> int:
+        """Iterations of the whole run: ceil(total_episodes / num_envs)."""
+        return -(-self.total_episodes // self.num_envs)
+
     def check_positive(self, *names: str) -> None:
         """ConfigError naming the first of ``names`` that is not a finite number > 0."""
         for name in names:
