@@ -103,6 +103,26 @@ class ConfigBase:
             value = _coerce(f.name, hints[f.name], getattr(self, f.name))
             object.__setattr__(self, f.name, value)
 
+    def check_at_least(self, minimum: float, *names: str) -> None:
+        """ConfigError naming the first of ``names`` below ``minimum``."""
+        for name in names:
+            value = getattr(self, name)
+            check(value >= minimum, name, f"must be >= {minimum}, got {value}")
+
+    def check_positive(self, *names: str) -> None:
+        """ConfigError naming the first of ``names`` that is not a finite number > 0."""
+        for name in names:
+            value = getattr(self, name)
+            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+
+    def check_unit(self, *names: str, closed: bool = True) -> None:
+        """ConfigError naming the first of ``names`` outside [0, 1] (``closed=False``: (0, 1])."""
+        for name in names:
+            value = getattr(self, name)
+            ok = 0.0 <= value <= 1.0 if closed else 0.0 < value <= 1.0
+            interval = "[0, 1]" if closed else "(0, 1]"
+            check(ok, name, f"must be in {interval}, got {value}")
+
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
@@ -228,9 +248,7 @@ class DomainConfig(ConfigBase):
             "n_req",
             f"must be in [1, n_rovers={self.n_rovers}], got {self.n_req}",
         )
-        for name in ("d_cap", "d_min", "poi_ring_radius", "spawn_radius"):
-            value = getattr(self, name)
-            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        self.check_positive("d_cap", "d_min", "poi_ring_radius", "spawn_radius")
         check(
             self.d_min <= self.d_cap,
             "d_min",
@@ -238,9 +256,7 @@ class DomainConfig(ConfigBase):
         )
         check(self.steps >= 1, "steps", f"must be >= 1, got {self.steps}")
         check_choice(self.motion, MOTION_MODELS, "motion")
-        for name in ("rover_radius", "rover_mass", "max_force", "max_torque"):
-            value = getattr(self, name)
-            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+        self.check_positive("rover_radius", "rover_mass", "max_force", "max_torque")
         check(self.substeps >= 1, "substeps", f"must be >= 1, got {self.substeps}")
         check(
             self.solver_iterations >= 1,
@@ -404,21 +420,11 @@ class LearnConfig(ConfigBase):
         check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
-        for name in (
-            "hidden",
-            "n_samples",
-            "eval_episodes",
-            "critic_hidden",
-            "replay_trajectories",
-            "trajectory_batch",
-            "trajectory_batches",
-            "replay_pairs",
-            "pair_batch",
-            "pair_batches",
-            "checkpoint_every",
-        ):
-            value = getattr(self, name)
-            check(value >= 1, name, f"must be >= 1, got {value}")
+        self.check_at_least(
+            1, "hidden", "n_samples", "eval_episodes", "critic_hidden", "replay_trajectories",
+            "trajectory_batch", "trajectory_batches", "replay_pairs", "pair_batch",
+            "pair_batches", "checkpoint_every",
+        )  # fmt: skip
         check(
             0.0 <= self.mutation_rate <= 1.0,
             "mutation_rate",

@@ -60,16 +60,10 @@ class MARLConfig(ConfigBase):
 
     def __post_init__(self) -> None:
         self._coerce_fields()
-        for name in (
-            "num_envs",
-            "total_episodes",
-            "hidden",
-            "eval_episodes",
-            "log_every",
+        self.check_at_least(
+            1, "num_envs", "total_episodes", "hidden", "eval_episodes", "log_every",
             "checkpoint_every",
-        ):
-            value = getattr(self, name)
-            check(value >= 1, name, f"must be >= 1, got {value}")
+        )  # fmt: skip
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         check_choice(self.reward, REWARDS, "reward")
 
@@ -77,20 +71,6 @@ class MARLConfig(ConfigBase):
     def total_iterations(self) -> int:
         """Iterations of the whole run: ceil(total_episodes / num_envs)."""
         return -(-self.total_episodes // self.num_envs)
-
-    def check_positive(self, *names: str) -> None:
-        """ConfigError naming the first of ``names`` that is not a finite number > 0."""
-        for name in names:
-            value = getattr(self, name)
-            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
-
-    def check_unit(self, *names: str, closed: bool = True) -> None:
-        """ConfigError naming the first of ``names`` outside [0, 1] (``closed=False``: (0, 1])."""
-        for name in names:
-            value = getattr(self, name)
-            ok = 0.0 <= value <= 1.0 if closed else 0.0 < value <= 1.0
-            interval = "[0, 1]" if closed else "(0, 1]"
-            check(ok, name, f"must be in {interval}, got {value}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,9 +111,7 @@ class MAPPOConfig(MARLConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ("value_hidden", "epochs", "minibatches"):
-            value = getattr(self, name)
-            check(value >= 1, name, f"must be >= 1, got {value}")
+        self.check_at_least(1, "value_hidden", "epochs", "minibatches")
         self.check_positive("lr", "clip", "max_grad_norm")
         self.check_unit("gamma", "gae_lambda")
         for name in ("entropy_coef", "value_coef"):
@@ -178,9 +156,7 @@ class MADDPGConfig(MARLConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ("critic_hidden", "batch_size", "buffer_capacity", "update_every"):
-            value = getattr(self, name)
-            check(value >= 1, name, f"must be >= 1, got {value}")
+        self.check_at_least(1, "critic_hidden", "batch_size", "buffer_capacity", "update_every")
         check(self.warmup_steps >= 0, "warmup_steps", f"must be >= 0, got {self.warmup_steps}")
         check(
             self.buffer_capacity >= self.batch_size,
