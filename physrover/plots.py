@@ -109,9 +109,9 @@ def load_runs(
     axis (``--final``): runs that differ in it are not split into groups by it.
     """
     paths = list(map(Path, run_dirs))
+    configs = [load_run_config(path) for path in paths]
     all_fields = []
-    for path in paths:
-        config = load_run_config(path)
+    for config in configs:
         fields = {**config.domain.to_dict(), **config.learn.to_dict()}
         if config.trainer is not None:  # a gradient-based run: its own table, by table.field
             section = config.trainer.section
@@ -124,14 +124,14 @@ def load_runs(
     order = list(_FIELD_ORDER) + sorted(split - set(_FIELD_ORDER))
     names = [n for n in order if n in split and n not in ("method", x)]
     runs = []
-    for path, fields in zip(paths, all_fields, strict=True):
+    for path, config, fields in zip(paths, configs, all_fields, strict=True):
         rows = read_metrics(path / METRICS)
         eval_g = np.array([r["eval_G"] for r in rows], dtype=float)
         generation = np.array([r["generation"] for r in rows], dtype=np.int64)
         if rows and "episodes" in rows[0]:
             episodes = np.array([r["episodes"] for r in rows], dtype=np.int64)
         else:
-            episodes = generation * training_episodes(load_run_config(path))
+            episodes = generation * training_episodes(config)
         label = group_label(fields, names)
         runs.append(Run(path, label, fields, eval_g, generation, episodes))
     return runs
