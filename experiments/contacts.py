@@ -40,7 +40,7 @@ def head_on(config: DomainConfig) -> dict:
         _, _, _, _, info = env.step(np.tile([1.0, 0.0], (len(distances), 2, 1)))
         pos = info["rover_positions"]
         crossed |= pos[:, 0, 0] > pos[:, 1, 0]
-        worst = max(worst, overlaps(pos, cfg.rover_radius).max())
+        worst = max(worst, overlaps(pos, cfg.physics.rover_radius).max())
     return {"pass_throughs": int(crossed.sum()), "cases": len(distances), "worst": worst}
 
 
@@ -53,7 +53,7 @@ def crowd(config: DomainConfig, seeds: int = 20) -> dict:
     for _ in range(cfg.steps):
         action = np.stack([np.ones((seeds, 15)), rng.uniform(-1, 1, (seeds, 15))], axis=-1)
         _, _, _, _, info = env.step(action)
-        seen.append(overlaps(info["rover_positions"], cfg.rover_radius))
+        seen.append(overlaps(info["rover_positions"], cfg.physics.rover_radius))
     seen = np.concatenate(seen, axis=None)
     touching = seen[seen > 0]
     median = float(np.median(touching)) if touching.size else 0.0
@@ -63,7 +63,7 @@ def crowd(config: DomainConfig, seeds: int = 20) -> dict:
 def pushing(config: DomainConfig) -> dict:
     cfg = config.replace(n_rovers=2, n_req=1, steps=30)
     env = RoverVectorEnv(1, config=cfg)
-    r = cfg.rover_radius
+    r = cfg.physics.rover_radius
     env.reset(seed=0, options={"rover_positions": [(-r, 0.0), (r, 0.0)],
                                "rover_headings": [0.0, np.pi]})  # fmt: skip
     for _ in range(cfg.steps):
@@ -76,7 +76,7 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
     args = parser.parse_args()
     fields = dict(parse_override(text) for text in args.set)
-    config = DomainConfig(motion="physics", collisions=True).replace(**fields)
+    config = DomainConfig(motion="physics").replace(collisions=True, **fields)
     h, c, p = head_on(config), crowd(config), pushing(config)
     print(
         f"head-on: {h['pass_throughs']}/{h['cases']} pass through, worst overlap "

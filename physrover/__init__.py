@@ -9,10 +9,15 @@ from __future__ import annotations
 import gymnasium
 
 from physrover.config import ConfigError, DomainConfig
-from physrover.domain import credit as _credit  # noqa: F401  (registers the credit signals)
+
+# Importing these registers the built-in parts under their names (physrover.registry).
+from physrover.domain import credit as _credit  # noqa: F401  (credit signals)
+from physrover.domain import physics as _physics  # noqa: F401  (motion models)
+from physrover.domain import scenarios as _scenarios  # noqa: F401  (scenarios)
+from physrover.domain import sensors as _sensors  # noqa: F401  (sensors)
 from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
-from physrover.learn import fitness as _fitness  # noqa: F401  (registers the fitness methods)
-from physrover.marl import configs as _trainers  # noqa: F401  (registers the trainers, no torch)
+from physrover.learn import fitness as _fitness  # noqa: F401  (fitness methods)
+from physrover.marl import configs as _trainers  # noqa: F401  (trainers; no torch import)
 
 __version__ = "0.1.0"
 __all__ = [

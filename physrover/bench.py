@@ -49,7 +49,7 @@ def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> T
         f"motion={config.motion}"
     )
     if config.motion == "physics":
-        name += f" (collisions={config.collisions}, substeps={config.substeps})"
+        name += f" (collisions={config.physics.collisions}, substeps={config.physics.substeps})"
     return Timing(name, statistics.median(runs), tuple(runs))
 
 

@@ -18,8 +18,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from physrover.config import DomainConfig
-from physrover.domain.sensing import OBS_DIM
-from physrover.domain.world import ACTION_DIM, RoverWorld, Scenario
+from physrover.domain.world import ACTION_DIM, RoverWorld, StartOverrides
 
 ENV_ID = "physrover/Rover-v0"
 
@@ -41,9 +40,13 @@ def resolve_config(
 
 
 def team_spaces(config: DomainConfig) -> tuple[spaces.Box, spaces.Box]:
-    """(observation, action) spaces of one team: (R, n_obs) from the sensor, (R, 2)."""
+    """(observation, action) spaces of one team: (R, n_obs) from the sensor, (R, 2).
+
+    The observations are bounded below by 0, as the built-in sensor's densities; a sensor
+    with other bounds sets ``low`` and ``high`` attributes (scalars)."""
     shape = (config.n_rovers,)
-    observation = spaces.Box(0.0, np.inf, shape=(*shape, OBS_DIM), dtype=np.float32)
+    low, high = getattr(config.sensor, "low", 0.0), getattr(config.sensor, "high", np.inf)
+    observation = spaces.Box(low, high, shape=(*shape, config.sensor.dim), dtype=np.float32)
     action = spaces.Box(-1.0, 1.0, shape=(*shape, ACTION_DIM), dtype=np.float32)
     return observation, action
 
@@ -140,7 +143,7 @@ class RoverEnv(gymnasium.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        obs = self.world.reset([self.np_random], Scenario.from_options(options))
+        obs = self.world.reset([self.np_random], StartOverrides.from_options(options))
         self._last_G = 0.0
         return obs[0], self._info()
 
@@ -235,7 +238,7 @@ class RoverVectorEnv(VectorEnv):
         return infos
 
     def _reset_world(self, options: dict[str, Any] | None) -> np.ndarray:
-        obs = self.world.reset(self._rngs, Scenario.from_options(options))
+        obs = self.world.reset(self._rngs, StartOverrides.from_options(options))
         self._last_G = np.zeros(self.num_envs)
         self._needs_reset = False
         return obs

@@ -1,5 +1,5 @@
-"""Named registries: the one list of the fitness methods (and, later, scenarios, sensors, ...)
-that config validation, the CLI, plots and docs all read.
+"""Named registries: the one list of the fitness methods, credit signals, scenarios, sensors,
+motion models and trainers that config validation, the CLI, plots and docs all read.
 
 A registry maps a name (as written in TOML and on the command line) to an entry; a
 researcher's own entry is one ``register`` call, from any module, without editing the package.
@@ -51,6 +51,15 @@ class Registry(Generic[T]):
         self._entries[name] = entry
         return entry
 
+    def register_class(self, cls: type, base: type, name_attr: str, *, replace: bool = False):
+        """Register the subclass ``cls`` of ``base`` under its ``name_attr`` attribute; returns
+        ``cls`` (so a ``register_*`` function built on this works as a class decorator)."""
+        name = getattr(cls, name_attr, "")
+        if not (isinstance(cls, type) and issubclass(cls, base)) or not name:
+            raise TypeError(f"a {self.kind} must be a {base.__name__} subclass with a {name_attr}")
+        self.register(name, cls, replace=replace)
+        return cls
+
     def unknown_message(self, name: str) -> str:
         return (
             f"unknown {self.kind} {name!r}{did_you_mean(name, self._entries)}; "
@@ -89,3 +98,15 @@ CREDITS: Registry = Registry("credit signal")
 #: Gradient-based trainers (the MARL baselines): name -> a
 #: :class:`physrover.marl.configs.TrainerSpec`.
 TRAINERS: Registry = Registry("trainer")
+
+#: Scenarios, the start states of episodes: name -> a
+#: :class:`physrover.domain.scenarios.Scenario` subclass (``[scenario] kind``).
+SCENARIOS: Registry = Registry("scenario")
+
+#: Sensors, what a rover observes: name -> a :class:`physrover.domain.sensors.Sensor`
+#: subclass (``[sensor] kind``).
+SENSORS: Registry = Registry("sensor")
+
+#: Motion models: name -> a :class:`physrover.domain.dynamics.Dynamics` subclass
+#: (``[domain] motion``).
+DYNAMICS: Registry = Registry("motion model")

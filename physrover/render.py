@@ -124,13 +124,13 @@ class Transform:
         (pixels per world unit) for x and y, and ``ROVER_PX + 1`` pixels to spare at the edges.
 
         Args:
-            poi_positions: (..., 2) world positions; default: the square around the domain's
-                POI ring (the view of the start state).
+            poi_positions: (..., 2) world positions; default: the square around the scenario's
+                extent (the view of the start state).
             rover_positions: (..., 2) world positions, any leading shape (e.g. the
                 (T + 1, R, 2) positions of a whole episode); default: none.
         """
         if poi_positions is None:
-            half = domain.poi_ring_radius + domain.d_cap
+            half = domain.scenario.extent() + domain.d_cap
             lo, hi = np.full(2, -half), np.full(2, half)
         else:
             pois = np.asarray(poi_positions, dtype=np.float64).reshape(-1, 2)
@@ -209,7 +209,7 @@ def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig) 
     """Draw (n, R, 2) world positions as trails ending in outlined bodies with heading ticks
     (later indices on top); bodies at their true size, at least ``ROVER_PX`` pixels."""
     aa = cv2.LINE_AA
-    radius_px = max(ROVER_PX, int(round(tf.scale * domain.rover_radius)))
+    radius_px = max(ROVER_PX, int(round(tf.scale * domain.physics.rover_radius)))
     trail = tf(positions)  # (n, R, 2) pixels
     now = trail[-1]
     if len(trail) > 1:
@@ -286,7 +286,7 @@ def draw_frame(
     # HUD.
     motion = domain.motion
     if motion == "physics":
-        motion += f" (collisions {'on' if domain.collisions else 'off'})"
+        motion += f" (collisions {'on' if domain.physics.collisions else 'off'})"
     lines = [
         f"step {state.step}/{domain.steps}   G {state.G:g}",
         f"n_req {domain.n_req}   {motion}",
@@ -305,7 +305,7 @@ def world_state(world, team: int) -> FrameState:
         headings=np.array(world.rover_headings[team]),
         poi_positions=np.array(world.poi_positions[team]),
         poi_values=np.array(world.poi_values[team]),
-        capture_step=np.array(world.scores.capture_step[team]),
+        capture_step=np.array(world.state.capture_step[team]),
         poi_counts=np.array(world.poi_counts[team]),
         step=t,
         G=float(world.G[team]),

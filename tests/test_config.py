@@ -33,7 +33,7 @@ INVALID = [
 @pytest.mark.parametrize(("fields", "bad"), INVALID)
 def test_invalid_values_name_the_field(fields, bad):
     with pytest.raises(ConfigError) as err:
-        DomainConfig(**fields)
+        DomainConfig.from_dict(fields)  # bare names of any of the domain's tables
     assert err.value.field == bad
     assert str(err.value).startswith(f"{bad}: ")
 
@@ -47,7 +47,12 @@ def test_defaults_are_the_papers():
     cfg = DomainConfig()
     assert (cfg.n_rovers, cfg.n_req, cfg.d_cap, cfg.d_min, cfg.steps) == (15, 3, 4.0, 1.0, 50)
     assert cfg.poi_values == (1.0, 2.0, 3.0, 4.0) and sum(cfg.poi_values) == 10
-    assert (cfg.poi_ring_radius, cfg.spawn_radius, cfg.motion) == (15.0, 1.5, "ideal")
+    assert (cfg.scenario.kind, cfg.scenario.poi_ring_radius, cfg.scenario.spawn_radius) == (
+        "ring",
+        15.0,
+        1.5,
+    )
+    assert (cfg.motion, cfg.sensor.kind, cfg.sensor.dim) == ("ideal", "quadrants", 8)
 
 
 def test_coercion_is_lossless_only():

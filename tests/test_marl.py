@@ -23,7 +23,9 @@ pin_threads(1)
 
 # Two POIs close to the start, n_req = 1: an untrained deterministic team (actions ~ 0)
 # scores ~0.6, a trained one ~3 (both POIs).
-EASY = DomainConfig(n_rovers=3, n_req=1, poi_values=(1.0, 2.0), steps=20, poi_ring_radius=5.0)
+EASY = DomainConfig(
+    n_rovers=3, n_req=1, poi_values=(1.0, 2.0), steps=20, scenario={"poi_ring_radius": 5.0}
+)
 TIMING_KEYS = ("wall_seconds", "env_steps_per_second")
 
 

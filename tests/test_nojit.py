@@ -14,7 +14,7 @@ from physrover.config import DomainConfig, RunConfig
 from physrover.domain.world import RoverWorld
 from physrover.learn.ccea import CCEA
 
-cfg = DomainConfig(n_rovers=4, n_req=2, poi_ring_radius=5.0, spawn_radius=3.0, steps=8)
+cfg = DomainConfig(n_rovers=4, n_req=2, steps=8).replace(poi_ring_radius=5.0, spawn_radius=3.0)
 world = RoverWorld(cfg, 3)
 world.reset([np.random.default_rng(e) for e in range(3)])
 for a in np.random.default_rng(5).uniform(-1, 1, (8, 3, 4, 2)):

@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 from physrover import DomainConfig, RoverEnv, RoverVectorEnv
 from physrover.domain.physics import separate
-from physrover.domain.world import RoverWorld, Scenario
+from physrover.domain.world import RoverWorld, StartOverrides
 
 
 def _rollout(env, seed, actions):
@@ -48,14 +48,14 @@ def test_finite_force_needs_several_steps_and_never_overshoots_the_command():
     speeds = []
     for _ in range(8):
         env.step(np.array([[1.0, 0.0]]))  # forward: no turning needed
-        speeds.append(np.hypot(*env.unwrapped.world.motion.state()[2][0, 0]))
+        speeds.append(np.hypot(*env.unwrapped.world.dynamics.state()[2][0, 0]))
     assert speeds[0] == pytest.approx(0.5, abs=1e-9)
     assert speeds[1] == pytest.approx(1.0, abs=1e-9)
     assert max(speeds) <= 1.0 + 1e-12
     env = _single_rover(max_force=0.5, substeps=4)
     for step in range(6):
         env.step(np.array([[1.0, 1.0]]))
-        speed = np.hypot(*env.unwrapped.world.motion.state()[2][0, 0])
+        speed = np.hypot(*env.unwrapped.world.dynamics.state()[2][0, 0])
         assert speed <= math.sqrt(2) + 1e-12
         if step == 0:
             assert speed < math.sqrt(2) - 0.5  # not there after one step
@@ -172,7 +172,7 @@ def test_scoring_and_sensing_are_the_shared_implementation():
     rng = np.random.default_rng(0)
     for _ in range(5):
         obs_phys = phys.step(rng.uniform(-1, 1, (2, 5, 2)))
-    here = Scenario(rover_positions=phys.rover_positions, rover_headings=phys.rover_headings)
+    here = StartOverrides(rover_positions=phys.rover_positions, rover_headings=phys.rover_headings)
     np.testing.assert_array_equal(ideal.reset(gens(), here), obs_phys)
     np.testing.assert_array_equal(ideal.poi_counts, phys.poi_counts)
 

@@ -205,7 +205,7 @@ def test_poi_counts_shown_are_the_scorings():
     assert world.poi_counts[0].tolist() == [2, 1, 0, 0]
     assert world_state(world, 0).poi_counts.tolist() == [2, 1, 0, 0]
     # The same convention as the scoring: POI 1 (2 >= n_req) is captured at reset, no other.
-    assert world.scores.capture_step[0].tolist() == [0, -1, -1, -1]
+    assert world.state.capture_step[0].tolist() == [0, -1, -1, -1]
 
 
 def test_record_run_side_by_side(tmp_path):

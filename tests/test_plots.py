@@ -268,7 +268,7 @@ def test_final_numbers_by_field(tmp_path, figures):
 
 
 def test_a_method_keeps_its_colour_across_figures():
-    from physrover.config import METHODS
+    from physrover.registry import FITNESS_METHODS as METHODS
 
     assert set(plots.METHOD_COLOURS) == set(METHODS)
     assert len(set(plots.METHOD_COLOURS.values())) == len(METHODS)

@@ -5,7 +5,7 @@ import pytest
 from oracles import score_episode
 
 from physrover.config import DomainConfig
-from physrover.domain.world import RoverWorld, Scenario
+from physrover.domain.world import RoverWorld, StartOverrides
 
 
 def _world(n_rovers, n_req, poi_values=(5.0,)):
@@ -16,7 +16,9 @@ def _world(n_rovers, n_req, poi_values=(5.0,)):
 def _reset(world, rovers, pois=((0.0, 0.0),)):
     return world.reset(
         [np.random.default_rng(0)],
-        Scenario(rover_positions=rovers, rover_headings=np.zeros(len(rovers)), poi_positions=pois),
+        StartOverrides(
+            rover_positions=rovers, rover_headings=np.zeros(len(rovers)), poi_positions=pois
+        ),
     )
 
 
@@ -81,9 +83,9 @@ def test_difference_removes_the_whole_trajectory():
 
 
 def test_world_D_matches_brute_force_recomputation():
-    # D_i from the online ScoreKeeper equals rescoring the episode with rover i deleted.
-    cfg = DomainConfig(
-        n_rovers=6, n_req=2, poi_values=(1.0, 2.0, 3.0), poi_ring_radius=4.0, steps=20
+    # D_i from the online records equals rescoring the episode with rover i deleted.
+    cfg = DomainConfig(n_rovers=6, n_req=2, poi_values=(1.0, 2.0, 3.0), steps=20).replace(
+        poi_ring_radius=4.0
     )
     w = RoverWorld(cfg, n_teams=8)
     w.reset([np.random.default_rng(s) for s in range(8)])

@@ -10,35 +10,20 @@ import pytest
 from oracles import observe, quadrants, relate
 
 from physrover.domain import kernels
+from physrover.domain.state import WorldState
 
 
 def compiled_observe(rovers, headings, pois, values, d_min):
-    """Observations from the compiled kernel (same arguments as ``sensing.observe``)."""
+    """Observations from the compiled kernel (same arguments as ``oracles.observe``)."""
     n_teams, n_rovers, _ = rovers.shape
-    n_pois = pois.shape[1]
-    rovers, headings, pois, values = (
-        np.ascontiguousarray(a, dtype=float) for a in (rovers, headings, pois, values)
-    )
-    cos_h, sin_h = np.empty_like(headings), np.empty_like(headings)
-    kernels.heading_trig(headings, cos_h, sin_h)
+    state = WorldState.zeros(n_teams, n_rovers, pois.shape[1])
+    state.rover_positions[:] = rovers
+    state.rover_headings[:] = headings
+    state.poi_positions[:] = pois
+    state.poi_values[:] = values
+    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
     obs = np.empty((n_teams, n_rovers, 8), dtype=np.float32)
-    kernels.observe_and_score(
-        rovers,
-        cos_h,
-        sin_h,
-        pois,
-        values,
-        d_min,
-        4.0,
-        3,
-        0,
-        np.zeros((n_teams, n_pois), dtype=bool),
-        np.zeros((n_teams, n_rovers, n_pois), dtype=bool),
-        np.full((n_teams, n_pois), -1),
-        np.zeros(n_teams),
-        np.zeros((n_teams, n_pois), dtype=np.int64),
-        obs,
-    )
+    kernels.sense(state, d_min, obs)
     return obs
 
 

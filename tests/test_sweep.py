@@ -131,8 +131,8 @@ collisions = false
     from physrover.config import RunConfig
 
     physics = RunConfig.from_toml(specs[1].config_toml).domain
-    assert (physics.motion, physics.collisions) == ("physics", False)
-    with pytest.raises(ConfigError, match="motion: must be one of"):
+    assert (physics.motion, physics.physics.collisions) == ("physics", False)
+    with pytest.raises(ConfigError, match="motion: unknown motion model 'teleport'"):
         _sweep(tmp_path, SWEEP + '\n[[variants]]\nmotion = "teleport"\n')
 
 

@@ -7,7 +7,7 @@ import pytest
 from oracles import IdealMotion
 
 from physrover.config import DomainConfig
-from physrover.domain.world import RoverWorld, Scenario
+from physrover.domain.world import RoverWorld, StartOverrides
 
 
 def _gens(n, seed=0):
@@ -53,7 +53,7 @@ def test_ideal_motion_moves_in_the_rover_frame_and_turns_to_the_move():
 
 def test_actions_are_clipped_and_nan_is_an_error():
     w = RoverWorld(DomainConfig(n_rovers=1, n_req=1, steps=3), n_teams=1)
-    w.reset(_gens(1), Scenario(rover_positions=[(0.0, 0.0)], rover_headings=[0.0]))
+    w.reset(_gens(1), StartOverrides(rover_positions=[(0.0, 0.0)], rover_headings=[0.0]))
     w.step(np.array([[[5.0, 0.0]]]))
     np.testing.assert_allclose(w.rover_positions[0, 0], [1.0, 0.0])
     np.testing.assert_array_equal(w.actions[0, 0, 0], [1.0, 0.0])
@@ -98,13 +98,13 @@ def test_trajectories_record_observation_action_pairs():
 def test_scenario_shapes_are_checked():
     w = RoverWorld(DomainConfig(n_rovers=3), n_teams=2)
     with pytest.raises(ValueError, match=r"rover_positions must have shape \(3, 2\)"):
-        w.reset(_gens(2), Scenario(rover_positions=np.zeros((4, 2))))
+        w.reset(_gens(2), StartOverrides(rover_positions=np.zeros((4, 2))))
     with pytest.raises(ValueError, match="poi_values must have shape"):
-        w.reset(_gens(2), Scenario(poi_values=[1.0, 2.0]))
+        w.reset(_gens(2), StartOverrides(poi_values=[1.0, 2.0]))
     with pytest.raises(ValueError, match="poi_values must be positive"):
-        w.reset(_gens(2), Scenario(poi_values=[1.0, 2.0, -3.0, 4.0]))
+        w.reset(_gens(2), StartOverrides(poi_values=[1.0, 2.0, -3.0, 4.0]))
     with pytest.raises(ValueError, match="unknown reset option 'rovers'"):
-        Scenario.from_options({"rovers": 1})
+        StartOverrides.from_options({"rovers": 1})
     with pytest.raises(ValueError, match="one generator per team"):
         w.reset(_gens(1))
 
@@ -113,7 +113,7 @@ def test_scenario_does_not_change_the_random_stream():
     cfg = DomainConfig(n_rovers=3)
     w = RoverWorld(cfg, n_teams=1)
     g1, g2 = _gens(1), _gens(1)
-    w.reset(g1, Scenario(rover_positions=np.zeros((3, 2))))
+    w.reset(g1, StartOverrides(rover_positions=np.zeros((3, 2))))
     w.reset(g2)
     assert g1[0].random() == g2[0].random()
 

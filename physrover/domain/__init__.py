@@ -1,4 +1,5 @@
-"""The tightly coupled multi-rover domain: geometry, sensing, scoring, motion, the world.
+"""The tightly coupled multi-rover domain: state, scenarios, motion, sensors, scoring, credit,
+the world.
 
 Nothing in this package imports from the gymnasium envs, the learners or the CLI.
 """

@@ -1,12 +1,14 @@
 """Compiled kernels of the world step: the one implementation of Eqs. 11-16 and of the
-idealised motion (Section 4.1.2).
+idealised motion (Section 4.1.2). Each takes the world's state, a
+:class:`~physrover.domain.state.WorldState`, and writes only its own part of it.
 
-- :func:`observe_and_score`: relations (Eq. 14 and the quadrants of
-  :mod:`physrover.domain.sensing`) + sensing (Eqs. 15-16) + scoring of one step (Eqs. 11-13
-  and the counterfactual counts of D, :mod:`physrover.domain.scoring`) in one pass over the
-  rover-object pairs;
-- :func:`ideal_step`: a whole idealised world step in one call (check and clip the actions,
-  move, observe, score, record), so that a step costs one call instead of a dozen.
+- :func:`sense`: the quadrant densities of Eqs. 14-16 (:mod:`physrover.domain.sensors`);
+- :func:`score`: one step's captures (Eqs. 12-13), G so far (Eq. 11) and the
+  counterfactual captures of D (Eq. 1), :mod:`physrover.domain.scoring`;
+- :func:`move`: the idealised motion of every rover;
+- :func:`ideal_step`: the three composed into a whole idealised world step in one call
+  (check and clip the actions, move, sense, score, record), team by team while its data is
+  in cache, so that a step costs one call instead of a dozen.
 
 The tests compare them with plain numpy versions of the same equations (``tests/oracles.py``)
 and with hand-worked values. Run with ``NUMBA_DISABLE_JIT=1`` they are plain Python, for
@@ -38,7 +40,8 @@ from physrover.compiled import jit
 
 @jit
 def quadrant(forward: float, left: float) -> int:
-    """Quadrant of an offset (forward, left) in the rover's frame, as ``geometry.quadrants``.
+    """Quadrant of an offset (forward, left) in the rover's frame (the convention of
+    :mod:`physrover.domain.sensors`).
 
     Branch-free (the quadrants of random objects defeat branch prediction): bit 1 is the
     half (bearing in [0, pi), dead ahead and the rover's own spot included), bit 0 the
@@ -73,42 +76,25 @@ def _move(cos_h, sin_h, heading, fwd, left):
 
 
 @jit
-def _observe_team(
-    e,
-    rover_positions,  # (E, R, 2) float64
-    cos_h,  # (E, R) float64
-    sin_h,  # (E, R) float64
-    poi_positions,  # (E, K, 2) float64
-    poi_values,  # (E, K) float64
-    d_min_sq,
-    d_cap_sq,
-    n_req,
-    t,
-    captured,  # (E, K) bool, updated
-    captured_without,  # (E, R, K) bool, updated
-    capture_step,  # (E, K) int64, updated
-    score,  # (E,) float64, written
-    obs,  # (E, R, 8) float32, written
-    counts,  # (E, K) int64, written: rovers within d_cap of each POI
-    near,  # (R, K) int64 scratch
-    acc,  # (8,) float64 scratch
-):
-    """Sense and score step ``t`` of team ``e`` (see :func:`observe_and_score`)."""
+def _sense_team(e, state, d_min_sq, obs, acc):
+    """Eqs. 14-16 for the rovers of team ``e``: ``obs[e]`` (R, 8) from ``state``; ``acc`` is
+    (8,) float64 scratch. Each channel adds its terms object by object (rovers by index,
+    then POIs)."""
+    positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
+    poi_positions, poi_values = state.poi_positions, state.poi_values
     n_rovers = cos_h.shape[1]
     n_pois = poi_positions.shape[1]
-    count = counts[e]
-    count[:] = 0
     for i in range(n_rovers):
         c = cos_h[e, i]
         s = sin_h[e, i]
-        xi = rover_positions[e, i, 0]
-        yi = rover_positions[e, i, 1]
+        xi = positions[e, i, 0]
+        yi = positions[e, i, 1]
         acc[:] = 0.0  # by quadrant: Eq. 15 in 0-3, Eq. 16 in 4-7
         for j in range(n_rovers):  # the other rovers, numerator 1
             if j == i:
                 continue
-            dx = rover_positions[e, j, 0] - xi
-            dy = rover_positions[e, j, 1] - yi
+            dx = positions[e, j, 0] - xi
+            dy = positions[e, j, 1] - yi
             dist_sq = max(dx * dx + dy * dy, d_min_sq)  # Eq. 14
             # An indexed add, not one select per quadrant: with real (changing) data the
             # compiler's branches for selects mispredict and cost more than the whole sum.
@@ -118,124 +104,151 @@ def _observe_team(
             dy = poi_positions[e, k, 1] - yi
             dist_sq = max(dx * dx + dy * dy, d_min_sq)
             acc[4 + quadrant(c * dx + s * dy, c * dy - s * dx)] += poi_values[e, k] / dist_sq
-            inside = np.int64(dist_sq <= d_cap_sq)  # Eq. 13
-            near[i, k] = inside
-            count[k] += inside
         for q in range(8):
             obs[e, i, q] = acc[q]
+
+
+@jit
+def _score_team(e, state, d_cap_sq, n_req, t, near):
+    """Score step ``t`` of team ``e`` (Eqs. 11-13 and D's counterfactual captures) in
+    ``state``'s scoring arrays; ``near`` is (R, K) int64 scratch.
+
+    Eq. 13 uses the bounded distance of Eq. 14, ``max(d, d_min) <= d_cap``, which is
+    ``d <= d_cap`` since the config keeps ``d_min <= d_cap``.
+    """
+    positions, poi_positions = state.rover_positions, state.poi_positions
+    n_rovers = positions.shape[1]
+    n_pois = poi_positions.shape[1]
+    count = state.poi_counts[e]
+    captured, captured_without = state.captured, state.captured_without
+    for k in range(n_pois):
+        px = poi_positions[e, k, 0]
+        py = poi_positions[e, k, 1]
+        n = 0
+        for i in range(n_rovers):
+            dx = px - positions[e, i, 0]
+            dy = py - positions[e, i, 1]
+            inside = np.int64(dx * dx + dy * dy <= d_cap_sq)  # Eq. 13
+            near[i, k] = inside
+            n += inside
+        count[k] = n
     total = 0.0
     for k in range(n_pois):
         if count[k] >= n_req:  # Eq. 12
             if not captured[e, k]:
-                capture_step[e, k] = t
+                state.capture_step[e, k] = t
                 captured[e, k] = True
         for i in range(n_rovers):  # Eq. 12 without rover i
             if count[k] - near[i, k] >= n_req:
                 captured_without[e, i, k] = True
         if captured[e, k]:  # Eq. 11
-            total += poi_values[e, k]
-    score[e] = total
+            total += state.poi_values[e, k]
+    state.score[e] = total
 
 
 @jit
-def observe_and_score(
-    rover_positions,  # (E, R, 2) float64
-    cos_h,  # (E, R) float64: cos of the headings
-    sin_h,  # (E, R) float64: sin of the headings
-    poi_positions,  # (E, K, 2) float64
-    poi_values,  # (E, K) float64
-    d_min,
-    d_cap,
-    n_req,
-    t,
-    captured,  # (E, K) bool, updated
-    captured_without,  # (E, R, K) bool, updated
-    capture_step,  # (E, K) int64, updated
-    score,  # (E,) float64, written
-    poi_counts,  # (E, K) int64, written: rovers within d_cap of each POI at this step
-    obs,  # (E, R, 8) float32, written
-):
-    """Sense (Eqs. 15-16) and score (Eqs. 11-13) step ``t`` for every team, in place.
-
-    ``captured``, ``captured_without``, ``capture_step`` and ``score`` (G so far) are the
-    arrays of a :class:`~physrover.domain.scoring.ScoreKeeper`, advanced by one step. Each
-    sensor channel adds its terms object by object (rovers by index, then POIs).
-    """
-    n_teams, n_rovers = cos_h.shape
-    n_pois = poi_positions.shape[1]
-    near = np.empty((n_rovers, n_pois), np.int64)
+def sense(state, d_min, obs):
+    """The quadrant sensor (Eqs. 14-16) of every rover of every team: ``obs`` (E, R, 8)
+    float32, written."""
     acc = np.empty(8)
-    for e in range(n_teams):
-        _observe_team(
-            e, rover_positions, cos_h, sin_h, poi_positions, poi_values, d_min * d_min,
-            d_cap * d_cap, n_req, t, captured, captured_without, capture_step, score, obs,
-            poi_counts, near, acc,
-        )  # fmt: skip
+    for e in range(state.cos_h.shape[0]):
+        _sense_team(e, state, d_min * d_min, obs, acc)
 
 
 @jit
-def ideal_step(
-    commands,  # (E, R, 2) float32 or float64: the actions as given
-    positions,  # (E, R, 2) float64: before the step
-    headings,  # (E, R) float64: before the step
-    cos_h,  # (E, R) float64: cos(headings), updated to the new headings
-    sin_h,  # (E, R) float64: sin(headings), updated to the new headings
-    actions,  # (E, R, 2) float32: written with the clipped actions
-    new_positions,  # (E, R, 2) float64, written
-    new_headings,  # (E, R) float64, written
-    poi_positions,
-    poi_values,
-    d_min,
-    d_cap,
-    n_req,
-    t,
-    captured,
-    captured_without,
-    capture_step,
-    score,
-    poi_counts,
-    obs,  # (E, R, 8) float32, written with the new observations
-    obs_record,  # (E, R, 8) float32, written with them too (may be ``obs`` itself)
-):
-    """One idealised world step of every team: ``RoverWorld.step`` under ``motion="ideal"``.
-
-    Returns False, having changed nothing, if a command is NaN. Otherwise clips the commands
-    to [-1, 1] (in float64, as ``np.clip``), records them in ``actions``, moves every rover
-    (:func:`_move`), and senses and scores the new state as :func:`observe_and_score` (the
-    arguments of the same names are the same), team by team while its data is in cache.
-    """
-    n_teams, n_rovers = headings.shape
-    n_pois = poi_positions.shape[1]
+def score(state, d_cap, n_req, t):
+    """Score step ``t`` (0 after reset, then 1, 2, ...) of every team in ``state``: the POIs'
+    rover counts, captures (Eqs. 12-13), G so far (Eq. 11) and the captures without each
+    rover (the counterfactual of D, Eq. 1)."""
+    n_teams, n_rovers = state.cos_h.shape
+    near = np.empty((n_rovers, state.poi_positions.shape[1]), np.int64)
     for e in range(n_teams):
-        for i in range(n_rovers):
+        _score_team(e, state, d_cap * d_cap, n_req, t, near)
+
+
+@jit
+def _clip(x):
+    return min(max(np.float64(x), -1.0), 1.0)
+
+
+@jit
+def _move_team(e, commands, state, actions):
+    """Move the rovers of team ``e`` by their clipped ``commands`` (recorded in ``actions``):
+    positions, headings and their cosines and sines in ``state``."""
+    positions, headings = state.rover_positions, state.rover_headings
+    cos_h, sin_h = state.cos_h, state.sin_h
+    for i in range(headings.shape[1]):
+        fwd = _clip(commands[e, i, 0])
+        left = _clip(commands[e, i, 1])
+        actions[e, i, 0] = fwd
+        actions[e, i, 1] = left
+        mx, my, heading = _move(cos_h[e, i], sin_h[e, i], headings[e, i], fwd, left)
+        positions[e, i, 0] += mx
+        positions[e, i, 1] += my
+        headings[e, i] = heading
+        # The new heading's cosine and sine: the move's direction (the module docstring).
+        norm = math.sqrt(mx * mx + my * my)
+        if norm > 1e-100:
+            cos_h[e, i] = mx / norm
+            sin_h[e, i] = my / norm
+        elif fwd != 0.0 or left != 0.0:  # a move so small that its square underflows
+            cos_h[e, i] = math.cos(heading)
+            sin_h[e, i] = math.sin(heading)
+
+
+@jit
+def _any_nan(commands):
+    for e in range(commands.shape[0]):
+        for i in range(commands.shape[1]):
             if math.isnan(commands[e, i, 0]) or math.isnan(commands[e, i, 1]):
-                return False
-    near = np.empty((n_rovers, n_pois), np.int64)
+                return True
+    return False
+
+
+@jit
+def move(commands, state, actions):
+    """The idealised motion of every rover under (E, R, 2) ``commands`` (float32 or float64,
+    as given): returns False, having changed nothing, if a command is NaN; otherwise clips
+    them to [-1, 1] (in float64, as ``np.clip``), records them in ``actions`` (E, R, 2) and
+    moves the rovers in ``state`` (:func:`_move`)."""
+    if _any_nan(commands):
+        return False
+    for e in range(commands.shape[0]):
+        _move_team(e, commands, state, actions)
+    return True
+
+
+@jit
+def ideal_step(commands, state, d_min, d_cap, n_req, t, actions, positions, headings, obs):
+    """One idealised world step of every team: :func:`move`, :func:`sense` and :func:`score`
+    (step ``t``) composed team by team, with the records: ``actions`` (E, R, 2) float32 the
+    clipped commands, ``positions`` (E, R, 2) and ``headings`` (E, R) copies of the new
+    state, ``obs`` (E, R, 8) float32 the new observations. Returns False, having changed
+    nothing, if a command is NaN.
+    """
+    if _any_nan(commands):
+        return False
+    n_teams, n_rovers = state.cos_h.shape
+    near = np.empty((n_rovers, state.poi_positions.shape[1]), np.int64)
     acc = np.empty(8)
     for e in range(n_teams):
+        _move_team(e, commands, state, actions)
+        _sense_team(e, state, d_min * d_min, obs, acc)
+        _score_team(e, state, d_cap * d_cap, n_req, t, near)
         for i in range(n_rovers):
-            fwd = min(max(np.float64(commands[e, i, 0]), -1.0), 1.0)
-            left = min(max(np.float64(commands[e, i, 1]), -1.0), 1.0)
-            actions[e, i, 0] = fwd
-            actions[e, i, 1] = left
-            mx, my, heading = _move(cos_h[e, i], sin_h[e, i], headings[e, i], fwd, left)
-            new_positions[e, i, 0] = positions[e, i, 0] + mx
-            new_positions[e, i, 1] = positions[e, i, 1] + my
-            new_headings[e, i] = heading
-            # The new heading's cosine and sine: the move's direction (the module docstring).
-            norm = math.sqrt(mx * mx + my * my)
-            if norm > 1e-100:
-                cos_h[e, i] = mx / norm
-                sin_h[e, i] = my / norm
-            elif fwd != 0.0 or left != 0.0:  # a move so small that its square underflows
-                cos_h[e, i] = math.cos(heading)
-                sin_h[e, i] = math.sin(heading)
-        _observe_team(
-            e, new_positions, cos_h, sin_h, poi_positions, poi_values, d_min * d_min,
-            d_cap * d_cap, n_req, t, captured, captured_without, capture_step, score, obs,
-            poi_counts, near, acc,
-        )  # fmt: skip
-        for i in range(n_rovers):
-            for c in range(8):
-                obs_record[e, i, c] = obs[e, i, c]
+            positions[e, i, 0] = state.rover_positions[e, i, 0]
+            positions[e, i, 1] = state.rover_positions[e, i, 1]
+            headings[e, i] = state.rover_headings[e, i]
     return True
+
+
+class Fused:
+    """Mixin of the parts compiled into :func:`ideal_step` (the idealised motion and the
+    quadrant sensor), declared with ``fused=True``; ``fused`` is False for their subclasses,
+    whose own methods the world must call instead of the fused kernel."""
+
+    fused = False
+
+    def __init_subclass__(cls, fused: bool = False, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.fused = fused

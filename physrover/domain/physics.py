@@ -60,6 +60,8 @@ import pymunk
 import pymunk.batch as pb
 
 from physrover.config import DomainConfig
+from physrover.domain.dynamics import Dynamics, register_dynamics
+from physrover.domain.kernels import heading_trig
 from physrover.domain.physics_kernels import control, setpoints, speculative_contacts, wrap_angles
 
 _ROVER = 0b01
@@ -122,8 +124,12 @@ def pair_overlaps(positions: np.ndarray, radius: float) -> np.ndarray:
     return np.maximum(0.0, 2 * radius - dist[:, i, j]) / (2 * radius)
 
 
-class PhysicsMotion:
-    """Physical motion for E teams of R rovers in one pymunk space; see the module docstring."""
+@register_dynamics
+class PhysicsMotion(Dynamics):
+    """Physical motion for E teams of R rovers in one pymunk space; see the module docstring.
+
+    Its parameters are the domain's [physics] table (:class:`~physrover.config.PhysicsConfig`).
+    """
 
     name = "physics"
 
@@ -131,33 +137,35 @@ class PhysicsMotion:
         self.config = config
         self.n_teams, self.n_rovers = n_teams, config.n_rovers
         n_bodies = n_teams * config.n_rovers
-        self.dt = 1.0 / config.substeps
-        self.mass = config.rover_mass
-        self.moment = pymunk.moment_for_circle(config.rover_mass, 0.0, config.rover_radius)
-        self.max_dv = config.max_force * self.dt / self.mass  # per physics step
-        self.max_dw = config.max_torque * self.dt / self.moment
-        self.alpha_max = config.max_torque / self.moment
+        self.dt = 1.0 / config.physics.substeps
+        self.mass = config.physics.rover_mass
+        self.moment = pymunk.moment_for_circle(
+            config.physics.rover_mass, 0.0, config.physics.rover_radius
+        )
+        self.max_dv = config.physics.max_force * self.dt / self.mass  # per physics step
+        self.max_dw = config.physics.max_torque * self.dt / self.moment
+        self.alpha_max = config.physics.max_torque / self.moment
 
         self.offsets = self._team_offsets()  # (E, 1, 2) world origin of each team's cell
         space = pymunk.Space()
-        space.iterations = config.solver_iterations
-        space.collision_slop = 0.01 * config.rover_radius
+        space.iterations = config.physics.solver_iterations
+        space.collision_slop = 0.01 * config.physics.rover_radius
         # Rebuilt from positions every step: pair order independent of history (see above).
-        space.use_spatial_hash(4.0 * config.rover_radius, 4 * n_bodies + 1)
-        mask = (_ROVER if config.collisions else 0) | _WALL
+        space.use_spatial_hash(4.0 * config.physics.rover_radius, 4 * n_bodies + 1)
+        mask = (_ROVER if config.physics.collisions else 0) | _WALL
         rover_filter = pymunk.ShapeFilter(categories=_ROVER, mask=mask)
         bodies, shapes = [], []
         for origin in self.offsets.reshape(-1, 2).repeat(config.n_rovers, axis=0):
-            body = pymunk.Body(config.rover_mass, self.moment)
+            body = pymunk.Body(config.physics.rover_mass, self.moment)
             body.position = tuple(origin)
-            shape = pymunk.Circle(body, config.rover_radius)
+            shape = pymunk.Circle(body, config.physics.rover_radius)
             shape.filter = rover_filter
             shape.elasticity = 0.0
             shape.friction = 0.0
             bodies.append(body)
             shapes.append(shape)
         space.add(*bodies, *shapes)
-        if config.walls:
+        if config.physics.walls:
             space.add(*self._walls(space.static_body))
         self.space = space
         self._buffer = pb.Buffer()
@@ -167,18 +175,18 @@ class PhysicsMotion:
 
     def _team_offsets(self) -> np.ndarray:
         cfg = self.config
-        if cfg.walls:
-            reach = cfg.wall_half_size
+        if cfg.physics.walls:
+            reach = cfg.physics.wall_half_size
         else:  # the farthest a rover can get: commanded speed <= sqrt(2) per step, margin 2x
-            reach = max(cfg.poi_ring_radius, cfg.spawn_radius) + 2.0 * math.sqrt(2) * cfg.steps
-        spacing = 2.0 * reach + 4.0 * cfg.rover_radius + 1.0
+            reach = cfg.scenario.extent() + 2.0 * math.sqrt(2) * cfg.steps
+        spacing = 2.0 * reach + 4.0 * cfg.physics.rover_radius + 1.0
         cols = math.ceil(math.sqrt(self.n_teams))
         index = np.arange(self.n_teams)
         grid = np.stack([index % cols, index // cols], axis=-1).astype(np.float64)
         return (spacing * grid)[:, None, :]
 
     def _walls(self, static_body: pymunk.Body) -> list[pymunk.Segment]:
-        h = self.config.wall_half_size
+        h = self.config.physics.wall_half_size
         corners = [(-h, -h), (h, -h), (h, h), (-h, h)]
         wall_filter = pymunk.ShapeFilter(categories=_WALL, mask=_ROVER)
         walls = []
@@ -213,14 +221,29 @@ class PhysicsMotion:
 
     # -- motion model interface --------------------------------------------------------------
 
-    def reset(self, positions: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Place the rovers at rest; returns the (possibly separated) positions and headings."""
+    def reset(self, state) -> None:
+        """Place the rovers of ``state`` at rest (overlapping spawns pushed apart)."""
+        state.rover_positions[:] = self._place(state.rover_positions, state.rover_headings)
+        heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+
+    def step(self, state, actions: np.ndarray) -> None:
+        """Advance one environment step under the (E, R, 2) clipped commands."""
+        positions, headings = self.advance(state.rover_headings, actions)
+        state.rover_positions[:] = positions
+        state.rover_headings[:] = headings
+        heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+
+    def _place(self, positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
+        """Put the rovers at rest at ``positions`` (pushed apart if they overlap and
+        collisions are on), facing ``headings``; returns the positions used."""
         cfg = self.config
-        if cfg.collisions:
-            positions = separate(positions, 2.0 * cfg.rover_radius, self.space.collision_slop)
+        if cfg.physics.collisions:
+            positions = separate(
+                positions, 2.0 * cfg.physics.rover_radius, self.space.collision_slop
+            )
         # Drop every cached contact: park the rovers apart and let the contacts expire.
         park = np.zeros((self.n_teams, self.n_rovers, 6))
-        park[..., 0] = 4.0 * cfg.rover_radius * np.arange(self.n_rovers)
+        park[..., 0] = 4.0 * cfg.physics.rover_radius * np.arange(self.n_rovers)
         park[..., :2] += self.offsets
         self._set(_ALL, park)
         for _ in range(self.space.collision_persistence + 1):
@@ -229,24 +252,22 @@ class PhysicsMotion:
         start[..., :2] = positions + self.offsets
         start[..., 2] = headings
         self._set(_ALL, start)
-        return positions, headings
+        return positions
 
-    def step(
-        self, positions: np.ndarray, headings: np.ndarray, actions: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Advance one environment step under the (E, R, 2) clipped commands."""
-        del positions  # the space holds the state
+    def advance(self, headings: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Step the space through one environment step from the current ``headings`` under
+        the clipped ``actions`` (E, R, 2); returns the new positions and headings."""
         cfg, dt = self.config, self.dt
         shape = (self.n_teams, self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
         setpoints(actions, headings, target_v, target_heading)
         out = np.empty((*shape, 6))
-        for substep in range(cfg.substeps):
+        for substep in range(cfg.physics.substeps):
             s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
             control(s, target_v, target_heading, substep == 0, dt, self.max_dv, self.max_dw,
                     self.alpha_max, self.mass, self.moment, out)  # fmt: skip
-            if cfg.collisions:  # no pair may end this physics step passed into another
-                speculative_contacts(s[..., 0:2], out[..., 0:2], cfg.rover_radius, dt,
+            if cfg.physics.collisions:  # no pair may end this physics step passed into another
+                speculative_contacts(s[..., 0:2], out[..., 0:2], cfg.physics.rover_radius, dt,
                                      self.space.collision_slop, 4)  # fmt: skip
             self._set(_MOTION | _FORCES, out)
             self.space.step(dt)

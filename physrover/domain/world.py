@@ -1,22 +1,29 @@
 """RoverWorld: E independent teams of R rovers stepped together with array operations.
 
-This is the one place that calls sensing (Eqs. 15-16) and scoring (Eqs. 11-14, 1), whichever
-motion model moves the rovers, so both motion models sense and score identically.
+The world composes the domain's parts, each chosen by the config and each writing only its
+own part of the one :class:`~physrover.domain.state.WorldState`:
+
+- the scenario (:mod:`physrover.domain.scenarios`) draws the start state at reset;
+- the motion model (:mod:`physrover.domain.dynamics`) moves the rovers;
+- the sensor (:mod:`physrover.domain.sensors`) writes the observations (Eqs. 14-16);
+- scoring (:func:`physrover.domain.kernels.score`) the captures, G and D's records
+  (Eqs. 11-13, 1);
+
+whichever motion model moves the rovers, so every model senses and scores identically.
 
 Arrays carry the team axis first: positions (E, R, 2), headings (E, R), observations
-(E, R, 8), actions (E, R, 2). Per step the world
+(E, R, n_obs), actions (E, R, 2). Per step the world
 
-1. clips the actions to [-1, 1] (NaN is an error),
-2. moves the rovers with the configured motion model,
-3. relates every rover to every rover and POI once (:func:`geometry.relate`),
-4. senses (Eqs. 15-16) and scores the step (Eqs. 12-13) from those relations,
+1. checks (NaN is an error) and clips the actions to [-1, 1],
+2. moves the rovers with the motion model,
+3. senses and scores the new state,
 
 and records each rover's trajectory of (observation, action) pairs for the fitness critics.
-Steps 2-4 are compiled (:mod:`physrover.domain.kernels`): with idealised motion the whole
-step (1-4 and the records) is one kernel call, :func:`~physrover.domain.kernels.ideal_step`;
-the physical model moves the rovers with pymunk between the clip and the compiled sensing
-and scoring (:func:`~physrover.domain.kernels.observe_and_score`). Plain numpy versions of
-the same equations live in the tests (``tests/oracles.py``), which compare the two.
+With the idealised model and the built-in sensor the whole step (1-3 and the records) is one
+compiled call, :func:`~physrover.domain.kernels.ideal_step`; otherwise the parts are called
+in turn (the physical model runs pymunk between the clip and the compiled sensing and
+scoring). Plain numpy versions of the same equations live in the tests
+(``tests/oracles.py``), which compare the two.
 """
 
 from __future__ import annotations
@@ -28,16 +35,20 @@ from typing import Any
 import numpy as np
 
 from physrover.config import DomainConfig
-from physrover.domain.kernels import heading_trig, ideal_step, observe_and_score
-from physrover.domain.scoring import ScoreKeeper
-from physrover.domain.sensing import OBS_DIM
+from physrover.domain.kernels import ideal_step, score
+from physrover.domain.scenarios import StartState
+from physrover.domain.scoring import difference, start_episode
+from physrover.domain.state import WorldState
+from physrover.registry import DYNAMICS
 
 ACTION_DIM = 2
+"""Action components per rover: (forward, left) in the rover's frame."""
 
 
 @dataclass(frozen=True)
-class Scenario:
-    """An explicit start state; any field left ``None`` is drawn as usual.
+class StartOverrides:
+    """Parts of a start state given explicitly (``reset(options=...)``); any field left
+    ``None`` is drawn by the scenario as usual.
 
     Each array is given either for one team (shapes below) or with a leading team axis E.
 
@@ -54,7 +65,7 @@ class Scenario:
     poi_values: Any = None
 
     @classmethod
-    def from_options(cls, options: Mapping[str, Any] | None) -> Scenario | None:
+    def from_options(cls, options: Mapping[str, Any] | None) -> StartOverrides | None:
         """Build from a gymnasium ``reset(options=...)`` dict; unknown keys are errors."""
         if not options:
             return None
@@ -76,38 +87,26 @@ def _team_array(name: str, value: Any, shape: tuple[int, ...], n_teams: int) -> 
         raise ValueError(f"{name} must have shape {shape} or {(n_teams, *shape)}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite")
-    return np.array(arr)
-
-
-def make_motion(config: DomainConfig, n_teams: int):
-    """The physical model for ``config.motion == "physics"``; None for the idealised model,
-    which the world's compiled step moves itself."""
-    if config.motion == "ideal":
-        return None
-    if config.motion == "physics":
-        from physrover.domain.physics import PhysicsMotion
-
-        return PhysicsMotion(config, n_teams)
-    raise ValueError(f"unknown motion model {config.motion!r}")  # config validation stops this
+    return arr
 
 
 class RoverWorld:
     """E teams of the multi-rover domain, reset and stepped together.
 
     Args:
-        config: the domain.
+        config: the domain (its scenario, motion model and sensor included).
         n_teams: E, the number of independent teams.
 
-    After :meth:`reset` the state is in ``rover_positions`` (E, R, 2), ``rover_headings``
-    (E, R), ``poi_positions`` (E, K, 2), ``poi_values`` (E, K); ``t`` is the number of steps
-    taken; ``G`` (E,) and ``D`` (E, R) are the scores so far, ``poi_counts`` (E, K) the rovers
-    within ``d_cap`` of each POI at the current step (Eq. 13). ``observations`` (steps, E, R, 8)
-    and ``actions`` (steps, E, R, 2), float32, hold the trajectory: row t is the pair
-    (s_t, a_t) of step t, valid for t < ``self.t``; ``position_history`` (steps + 1, E, R, 2)
-    and ``heading_history`` (steps + 1, E, R) the states after reset and every step, valid
-    for rows <= ``self.t``. All of these are reused by the next episode, and
-    ``rover_positions``/``rover_headings`` may be views of the current history row: copy
-    what you keep (the envs' infos hold copies).
+    The state is ``state`` (a :class:`~physrover.domain.state.WorldState`), also read
+    through ``rover_positions`` (E, R, 2), ``rover_headings`` (E, R), ``poi_positions``
+    (E, K, 2), ``poi_values`` (E, K) and ``poi_counts`` (E, K), the rovers within ``d_cap`` of
+    each POI at the current step (Eq. 13); ``t`` is the number of steps taken; ``G`` (E,)
+    and ``D`` (E, R) are the scores so far. ``observations`` (steps, E, R, n_obs) and
+    ``actions`` (steps, E, R, 2), float32, hold the trajectory: row t is the pair (s_t, a_t)
+    of step t, valid for t < ``self.t``; ``position_history`` (steps + 1, E, R, 2) and
+    ``heading_history`` (steps + 1, E, R) the states after reset and every step, valid for
+    rows <= ``self.t``. All of these are updated in place and reused by the next episode:
+    copy what you keep (the envs' infos hold copies).
     """
 
     def __init__(self, config: DomainConfig, n_teams: int):
@@ -119,76 +118,61 @@ class RoverWorld:
         self.n_teams = int(n_teams)
         self.n_rovers = config.n_rovers
         self.n_pois = config.n_pois
-        self.motion = make_motion(config, self.n_teams)
-        self.scores = ScoreKeeper(config.n_req)
+        self.sensor = config.sensor
+        self.obs_dim = int(self.sensor.dim)
+        self.dynamics = DYNAMICS[config.motion](config, self.n_teams)
+        self.state = WorldState.zeros(self.n_teams, self.n_rovers, self.n_pois)
         shape = (config.steps, self.n_teams, self.n_rovers)
-        self.observations = np.zeros((*shape, OBS_DIM), dtype=np.float32)
+        self.observations = np.zeros((*shape, self.obs_dim), dtype=np.float32)
         self.actions = np.zeros((*shape, ACTION_DIM), dtype=np.float32)
         states = (config.steps + 1, self.n_teams, self.n_rovers)
         self.position_history = np.zeros((*states, 2))
         self.heading_history = np.zeros(states)
-        # cos and sin of the headings, kept next to them (see domain.kernels)
-        self._cos_h = np.zeros(states[1:])
-        self._sin_h = np.zeros(states[1:])
-        self.poi_counts = np.zeros((self.n_teams, self.n_pois), dtype=np.int64)
-        self._fused = self.motion is None  # idealised: one compiled call per step
+        # idealised motion and the built-in sensor: one compiled call per step
+        self._fused = self.dynamics.fused and self.sensor.fused
         self.t = -1  # not reset yet
 
     # -- state -------------------------------------------------------------------------------
 
-    def default_poi_positions(self) -> np.ndarray:
-        """(K, 2): POIs evenly on the ring, the first at angle 0, the rest counter-clockwise."""
-        angles = 2.0 * np.pi * np.arange(self.n_pois) / self.n_pois
-        return self.config.poi_ring_radius * np.stack([np.cos(angles), np.sin(angles)], -1)
-
     def reset(
-        self, rngs: Sequence[np.random.Generator], scenario: Scenario | None = None
+        self, rngs: Sequence[np.random.Generator], overrides: StartOverrides | None = None
     ) -> np.ndarray:
-        """Start a new episode in every team; returns the (E, R, 8) float32 observations.
+        """Start a new episode in every team; returns the (E, R, n_obs) float32 observations.
 
-        Team e draws its rovers from ``rngs[e]`` alone (so a team's start state depends only
-        on its own generator): positions uniform in the spawn disc, headings uniform in
-        [-pi, pi). The draws are made even where ``scenario`` overrides them, so the
-        generators advance identically with and without a scenario.
+        The scenario draws the start state, team e from ``rngs[e]`` alone (so a team's start
+        state depends only on its own generator). It draws even where ``overrides`` give
+        parts of the start, so the generators advance identically with and without them.
         """
         if len(rngs) != self.n_teams:
             raise ValueError(f"need one generator per team ({self.n_teams}), got {len(rngs)}")
-        n_teams, n_rovers, cfg = self.n_teams, self.n_rovers, self.config
-        u = np.stack([rng.random((n_rovers, 3)) for rng in rngs])  # (E, R, 3)
-        radius = cfg.spawn_radius * np.sqrt(u[..., 0])
-        angle = 2.0 * np.pi * u[..., 1]
-        positions = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=-1)
-        headings = 2.0 * np.pi * u[..., 2] - np.pi
-        poi_positions = self.default_poi_positions()
-        poi_values = np.asarray(cfg.poi_values, dtype=np.float64)
-
-        sc = scenario or Scenario()
-        if sc.rover_positions is not None:
-            positions = _team_array("rover_positions", sc.rover_positions, (n_rovers, 2), n_teams)
-        if sc.rover_headings is not None:
-            headings = _team_array("rover_headings", sc.rover_headings, (n_rovers,), n_teams)
-        if sc.poi_positions is not None:
-            poi_positions = sc.poi_positions
-        if sc.poi_values is not None:
-            poi_values = sc.poi_values
-        self.poi_positions = _team_array("poi_positions", poi_positions, (self.n_pois, 2), n_teams)
-        self.poi_values = _team_array("poi_values", poi_values, (self.n_pois,), n_teams)
-        if np.any(self.poi_values <= 0):
+        cfg, e, r, k = self.config, self.n_teams, self.n_rovers, self.n_pois
+        start = cfg.scenario.draw(rngs, r, np.asarray(cfg.poi_values, dtype=np.float64))
+        if not isinstance(start, StartState):
+            raise TypeError(f"{type(cfg.scenario).__name__}.draw must return a StartState")
+        o = overrides or StartOverrides()
+        pick = lambda given, drawn: drawn if given is None else given  # noqa: E731
+        state = self.state
+        state.rover_positions[:] = _team_array(
+            "rover_positions", pick(o.rover_positions, start.rover_positions), (r, 2), e
+        )
+        state.rover_headings[:] = _team_array(
+            "rover_headings", pick(o.rover_headings, start.rover_headings), (r,), e
+        )
+        state.poi_positions[:] = _team_array(
+            "poi_positions", pick(o.poi_positions, start.poi_positions), (k, 2), e
+        )
+        values = _team_array("poi_values", pick(o.poi_values, start.poi_values), (k,), e)
+        if np.any(values <= 0):
             raise ValueError("poi_values must be positive")
-
-        if self.motion is not None:  # the physical model may push overlapping spawns apart
-            positions, headings = self.motion.reset(positions, headings)
-        self.rover_positions, self.rover_headings = positions, headings
-        self.scores.reset(n_teams, n_rovers, self.poi_values)
+        state.poi_values[:] = values
+        self.dynamics.reset(state)  # may push overlapping spawns apart
+        start_episode(state)
         self.t = 0
-        obs = self._observe_and_score()
-        if self._fused:  # the kernel steps from and into rows of the history
-            self.rover_positions = self.position_history[0]
-            self.rover_headings = self.heading_history[0]
-        return obs
+        return self._sense_and_score()
 
     def step(self, actions: np.ndarray) -> np.ndarray:
-        """Apply (E, R, 2) actions (clipped to [-1, 1]); returns (E, R, 8) float32 observations."""
+        """Apply (E, R, 2) actions (clipped to [-1, 1]); returns (E, R, n_obs) float32
+        observations."""
         if self.t < 0:
             raise RuntimeError("call reset() before step()")
         if self.t >= self.config.steps:
@@ -203,70 +187,60 @@ class RoverWorld:
             raise ValueError("actions contain NaN")
         actions = np.clip(actions, -1.0, 1.0, dtype=np.float64)
         self.actions[self.t] = actions
-        self.rover_positions, self.rover_headings = self.motion.step(
-            self.rover_positions, self.rover_headings, actions
-        )
+        self.dynamics.step(self.state, actions)
         self.t += 1
-        return self._observe_and_score()
+        return self._sense_and_score()
 
     def _step_compiled(self, actions: np.ndarray) -> np.ndarray:
-        """The idealised step as one kernel call: the new state is written straight into
-        the history rows, and ``rover_positions``/``rover_headings`` become views of them."""
+        """The idealised step with the built-in sensor as one kernel call."""
         if actions.dtype not in (np.float32, np.float64):
             actions = actions.astype(np.float64)
-        cfg, scores, t = self.config, self.scores, self.t
-        obs = np.empty((self.n_teams, self.n_rovers, OBS_DIM), dtype=np.float32)
+        cfg, t = self.config, self.t
+        obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
         ok = ideal_step(
-            actions,
-            self.rover_positions,
-            self.rover_headings,
-            self._cos_h,
-            self._sin_h,
-            self.actions[t],
-            self.position_history[t + 1],
-            self.heading_history[t + 1],
-            *self._scoring_arguments(),
-            obs,
-            self.observations[t + 1] if t + 1 < cfg.steps else obs,
-        )
+            actions, self.state, cfg.d_min, cfg.d_cap, cfg.n_req, t + 1, self.actions[t],
+            self.position_history[t + 1], self.heading_history[t + 1], obs,
+        )  # fmt: skip
         if not ok:
             raise ValueError("actions contain NaN")
-        scores.t += 1  # the kernel advanced the keeper's arrays as ScoreKeeper.record does
         self.t = t + 1
-        self.rover_positions = self.position_history[t + 1]
-        self.rover_headings = self.heading_history[t + 1]
-        return obs
-
-    def _observe_and_score(self) -> np.ndarray:
-        heading_trig(self.rover_headings, self._cos_h, self._sin_h)
-        obs = np.empty((self.n_teams, self.n_rovers, OBS_DIM), dtype=np.float32)
-        observe_and_score(self.rover_positions, self._cos_h, self._sin_h,
-                          *self._scoring_arguments(), obs)  # fmt: skip
-        self.scores.t += 1  # the kernel advanced the keeper's arrays (see ScoreKeeper)
-        self.position_history[self.t] = self.rover_positions
-        self.heading_history[self.t] = self.rover_headings
-        if self.t < self.config.steps:
+        if self.t < cfg.steps:
             self.observations[self.t] = obs
         return obs
 
-    def _scoring_arguments(self) -> tuple:
-        """The arguments the compiled kernels share, from ``poi_positions`` to ``score``."""
-        cfg, scores = self.config, self.scores
-        return (
-            self.poi_positions,
-            self.poi_values,
-            cfg.d_min,
-            cfg.d_cap,
-            cfg.n_req,
-            scores.t,
-            scores.captured,
-            scores.captured_without,
-            scores.capture_step,
-            scores.score,
-            self.poi_counts,
-        )
+    def _sense_and_score(self) -> np.ndarray:
+        """Sense and score the current state (step ``t``) and record it."""
+        cfg, t = self.config, self.t
+        obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
+        self.sensor.observe(self.state, cfg.d_min, obs)
+        score(self.state, cfg.d_cap, cfg.n_req, t)
+        self.position_history[t] = self.state.rover_positions
+        self.heading_history[t] = self.state.rover_headings
+        if t < cfg.steps:
+            self.observations[t] = obs
+        return obs
 
     # -- results -----------------------------------------------------------------------------
+
+    @property
+    def rover_positions(self) -> np.ndarray:
+        return self.state.rover_positions
+
+    @property
+    def rover_headings(self) -> np.ndarray:
+        return self.state.rover_headings
+
+    @property
+    def poi_positions(self) -> np.ndarray:
+        return self.state.poi_positions
+
+    @property
+    def poi_values(self) -> np.ndarray:
+        return self.state.poi_values
+
+    @property
+    def poi_counts(self) -> np.ndarray:
+        return self.state.poi_counts
 
     @property
     def done(self) -> bool:
@@ -274,14 +248,14 @@ class RoverWorld:
 
     @property
     def G(self) -> np.ndarray:
-        """(E,) team score so far (Eq. 11)."""
-        return self.scores.G
+        """(E,) team score so far (Eq. 11), a copy."""
+        return self.state.score.copy()
 
     @property
     def D(self) -> np.ndarray:
         """(E, R) difference evaluations so far (Eq. 1)."""
-        return self.scores.D
+        return difference(self.state)
 
     def trajectories(self) -> tuple[np.ndarray, np.ndarray]:
-        """Views of the recorded (t, E, R, 8) observations and (t, E, R, 2) actions so far."""
+        """Views of the recorded (t, E, R, n_obs) observations and (t, E, R, 2) actions."""
         return self.observations[: self.t], self.actions[: self.t]

@@ -17,7 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from physrover.config import DomainConfig
-from physrover.domain.world import Scenario
+from physrover.domain.world import StartOverrides
 from physrover.envs import RoverEnv, resolve_config
 
 try:
@@ -168,7 +168,7 @@ class RoverParallelEnv(ParallelEnv):
         not know (``{"options": 1}``), where RoverEnv itself raises.
         """
         if options:
-            known = {f.name for f in fields(Scenario)}
+            known = {f.name for f in fields(StartOverrides)}
             unknown = sorted(set(options) - known)
             if unknown:
                 warnings.warn(

@@ -1,0 +1,46 @@
+"""Typed, frozen configuration with field-named validation and TOML in/out.
+
+- :mod:`physrover.config.base`: the shared machinery (coercion, errors, TOML, components);
+- :mod:`physrover.config.domain`: [domain], [physics], [scenario], [sensor];
+- :mod:`physrover.config.learn`: [learn];
+- :mod:`physrover.config.run`: a run's whole config (the tables above and a trainer's).
+
+Every config is validated on construction: a bad value raises :class:`ConfigError`, whose
+message names the field and the allowed range. Unknown names are errors, never ignored.
+"""
+
+from physrover.config.base import (
+    Component,
+    ConfigBase,
+    ConfigError,
+    check,
+    check_choice,
+    dumps_toml,
+    load_toml_file,
+    loads_toml,
+    naming_file,
+    parse_override,
+)
+from physrover.config.domain import COMPONENTS, DomainConfig, PhysicsConfig
+from physrover.config.learn import OPTIMIZERS, LearnConfig
+from physrover.config.run import SHARED_WITH_LEARN, RunConfig
+
+__all__ = [
+    "COMPONENTS",
+    "Component",
+    "ConfigBase",
+    "ConfigError",
+    "DomainConfig",
+    "LearnConfig",
+    "OPTIMIZERS",
+    "PhysicsConfig",
+    "RunConfig",
+    "SHARED_WITH_LEARN",
+    "check",
+    "check_choice",
+    "dumps_toml",
+    "load_toml_file",
+    "loads_toml",
+    "naming_file",
+    "parse_override",
+]

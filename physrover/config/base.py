@@ -1,0 +1,276 @@
+"""The machinery every config table shares: type coercion, field-named errors, TOML in/out.
+
+A config table is a frozen dataclass deriving from :class:`ConfigBase`; it coerces its
+fields to their declared types on construction and validates them with :func:`check`, so a
+bad value raises :class:`ConfigError` naming the field and the allowed range. Unknown names
+are errors, never ignored.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import sys
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar
+
+from physrover.registry import did_you_mean
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+
+class ConfigError(ValueError):
+    """A configuration value is invalid; the message names the field."""
+
+    def __init__(self, field: str, message: str):
+        self.field, self.message = field, message
+        super().__init__(f"{field}: {message}")
+
+
+@contextlib.contextmanager
+def naming_file(path: str | Path):
+    """Prefix the message of a :class:`ConfigError` raised inside with the file's path."""
+    try:
+        yield
+    except ConfigError as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        raise ConfigError(f"{path}: {exc.field}", exc.message) from None
+
+
+# ----------------------------------------------------------------------------------------------
+# Type coercion shared by every config dataclass
+# ----------------------------------------------------------------------------------------------
+
+
+def _coerce(field: str, annotation: Any, value: Any) -> Any:
+    """Return ``value`` converted to the field's declared type, or raise ConfigError.
+
+    Accepted conversions are the loss-free ones: int -> float, list -> tuple. A bool is never
+    accepted for a number (TOML and Python both allow ``True == 1``; a config should not).
+    A field annotated ``Any`` is left as given (its table validates it).
+    """
+    if annotation is Any:
+        return value
+    if annotation is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(field, f"expected a number, got {value!r}")
+        value = float(value)
+        if math.isnan(value):
+            raise ConfigError(field, "must not be NaN")
+        return value
+    if annotation is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            if isinstance(value, float) and value.is_integer():
+                return int(value)
+            raise ConfigError(field, f"expected an integer, got {value!r}")
+        return int(value)
+    if annotation is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(field, f"expected true or false, got {value!r}")
+        return value
+    if annotation is str:
+        if not isinstance(value, str):
+            raise ConfigError(field, f"expected a string, got {value!r}")
+        return value
+    origin = typing.get_origin(annotation)
+    if origin is tuple:
+        (item_type, _ellipsis) = typing.get_args(annotation)
+        if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+            raise ConfigError(field, f"expected a list, got {value!r}")
+        return tuple(_coerce(field, item_type, v) for v in value)
+    raise TypeError(f"unsupported config field type {annotation!r} for {field}")
+
+
+class ConfigBase:
+    """Mixin of every config dataclass: type coercion on construction, dict/TOML
+    conversion, unknown-key errors. Subclasses (frozen dataclasses) call
+    ``_coerce_fields()`` then validate with :func:`check` in ``__post_init__``."""
+
+    #: Name of the TOML table that holds this config.
+    section: ClassVar[str] = ""
+
+    def _coerce_fields(self) -> None:
+        hints = typing.get_type_hints(type(self))
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = _coerce(f.name, hints[f.name], getattr(self, f.name))
+            object.__setattr__(self, f.name, value)
+
+    def check_at_least(self, minimum: float, *names: str) -> None:
+        """ConfigError naming the first of ``names`` below ``minimum``."""
+        for name in names:
+            value = getattr(self, name)
+            check(value >= minimum, name, f"must be >= {minimum}, got {value}")
+
+    def check_positive(self, *names: str) -> None:
+        """ConfigError naming the first of ``names`` that is not a finite number > 0."""
+        for name in names:
+            value = getattr(self, name)
+            check(value > 0 and math.isfinite(value), name, f"must be > 0, got {value}")
+
+    def check_unit(self, *names: str, closed: bool = True) -> None:
+        """ConfigError naming the first of ``names`` outside [0, 1] (``closed=False``: (0, 1])."""
+        for name in names:
+            value = getattr(self, name)
+            ok = 0.0 <= value <= 1.0 if closed else 0.0 < value <= 1.0
+            interval = "[0, 1]" if closed else "(0, 1]"
+            check(ok, name, f"must be in {interval}, got {value}")
+
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]):
+        unknown = sorted(set(values) - set(cls.field_names()))
+        if unknown:
+            allowed = ", ".join(cls.field_names())
+            hint = did_you_mean(unknown[0], cls.field_names())
+            raise ConfigError(unknown[0], f"unknown {cls.__name__} field{hint} (known: {allowed})")
+        return cls(**values)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+
+    def replace(self, **changes: Any):
+        """A copy with ``changes`` applied and validated (unknown names are errors)."""
+        merged = self.to_dict()
+        unknown = sorted(set(changes) - set(merged))
+        if unknown:
+            hint = did_you_mean(unknown[0], merged)
+            raise ConfigError(unknown[0], f"unknown {type(self).__name__} field{hint}")
+        merged.update(changes)
+        return type(self)(**merged)
+
+    def to_toml(self) -> str:
+        return dumps_toml({self.section: self.to_dict()})
+
+    @classmethod
+    def from_toml(cls, text: str):
+        data = loads_toml(text)
+        unknown = sorted(set(data) - {cls.section})
+        if unknown:
+            raise ConfigError(unknown[0], f"unknown TOML table (expected [{cls.section}])")
+        return cls.from_dict(data.get(cls.section, {}))
+
+
+def check(ok: bool, field: str, message: str) -> None:
+    """Raise :class:`ConfigError` naming ``field`` with ``message`` unless ``ok``."""
+    if not ok:
+        raise ConfigError(field, message)
+
+
+def check_choice(value: str, choices: tuple[str, ...], field: str) -> None:
+    """Raise :class:`ConfigError` unless ``value`` is one of ``choices``."""
+    hint = did_you_mean(value, choices) if isinstance(value, str) else ""
+    check(value in choices, field, f"must be one of {', '.join(choices)}; got {value!r}{hint}")
+
+
+# ----------------------------------------------------------------------------------------------
+# TOML
+# ----------------------------------------------------------------------------------------------
+
+
+def loads_toml(text: str, source: str = "<string>") -> dict[str, Any]:
+    """Parse TOML; a syntax error names ``source`` (a file's path) and the line and column
+    the parser gives."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(source, f"cannot parse TOML: {exc}") from None
+
+
+def load_toml_file(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file; errors name the file."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(str(path), f"cannot read: {exc.strerror}") from None
+    return loads_toml(text, str(path))
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def dumps_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
+    """Write tables of scalars and flat lists as TOML (enough for every physrover config)."""
+    lines: list[str] = []
+    for name, table in tables.items():
+        if lines:
+            lines.append("")
+        lines.append(f"[{name}]")
+        lines.extend(f"{key} = {_toml_value(value)}" for key, value in table.items())
+    return "\n".join(lines) + "\n"
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Parse ``FIELD=VALUE`` from the command line; VALUE is read as TOML, else as a string.
+
+    ``n_req=5`` -> ("n_req", 5); ``poi_values=[1, 2]`` -> ("poi_values", [1, 2]);
+    ``motion=physics`` -> ("motion", "physics").
+    """
+    name, sep, raw = text.partition("=")
+    name = name.strip()
+    if not sep or not name:
+        raise ConfigError("--set", f"expected FIELD=VALUE, got {text!r}")
+    raw = raw.strip()
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return name, value
+
+
+# ----------------------------------------------------------------------------------------------
+# Components: parts of the domain chosen by name (a scenario, a sensor)
+# ----------------------------------------------------------------------------------------------
+
+
+class Component(ConfigBase):
+    """A part of the domain chosen by name, whose parameters are its own config table.
+
+    A component class is a frozen dataclass (its fields are its parameters, coerced and
+    validated like any table) with a ``kind``, the name it is registered under. In TOML its
+    table is ``[section]`` with ``kind = "NAME"`` and the parameters of that kind; in code an
+    instance is passed as it is (``DomainConfig(scenario=MyScenario(...))``).
+    """
+
+    kind: ClassVar[str] = ""
+
+    def table(self) -> dict[str, Any]:
+        """The TOML table: ``kind`` then the parameters."""
+        return {"kind": self.kind, **self.to_dict()}
+
+
+def component(value: Any, registry, section: str, default: str) -> Component:
+    """The component of ``section`` that ``value`` describes: None (the default kind), a
+    registered kind's name, a table ``{"kind": NAME, **parameters}``, or an instance."""
+    if value is None:
+        value = default
+    if isinstance(value, str):
+        value = {"kind": value}
+    if isinstance(value, Mapping):
+        table = dict(value)
+        kind = table.pop("kind", default)
+        check(kind in registry, f"{section}.kind", registry.unknown_message(kind))
+        return registry[kind].from_dict(table)
+    ok = isinstance(value, Component) and value.section == section
+    check(ok, section, f"must be a {section} (a registered kind's name, a table or an "
+          f"instance), got {type(value).__name__}")  # fmt: skip
+    return value

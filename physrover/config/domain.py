@@ -1,0 +1,252 @@
+"""The domain's configuration: ``[domain]``, ``[physics]``, ``[scenario]`` and ``[sensor]``.
+
+Field names are the public vocabulary of physrover: the same names are used in TOML files,
+on the command line (``--set n_req=5``, ``--set physics.substeps=2``) and as keyword
+arguments of the gymnasium environments (``RoverVectorEnv(50, n_req=5, collisions=False)``).
+A bare name is looked up in [domain], then [physics], the scenario's and the sensor's
+tables (no name is in two of them).
+
+The scenario (start states) and the sensor (observations) are components chosen by name
+(``[scenario] kind = "ring"``, :mod:`physrover.domain.scenarios`; ``[sensor] kind =
+"quadrants"``, :mod:`physrover.domain.sensors`); the motion model by ``[domain] motion``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+from physrover.config.base import (
+    Component,
+    ConfigBase,
+    ConfigError,
+    check,
+    component,
+    did_you_mean,
+    dumps_toml,
+    loads_toml,
+)
+from physrover.registry import DYNAMICS, SCENARIOS, SENSORS
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsConfig(ConfigBase):
+    """The physical motion model (``motion = "physics"``, :mod:`physrover.domain.physics`).
+
+    Time unit: one environment step; lengths in world units; masses in mass units.
+    """
+
+    section: ClassVar[str] = "physics"
+
+    collisions: bool = True
+    """Rovers of a team collide with each other."""
+    rover_radius: float = 0.2
+    """Radius of a rover's circular body, world units."""
+    rover_mass: float = 1.0
+    """Mass of a rover, mass units; moment of inertia is that of a disc."""
+    max_force: float = 0.5
+    """Largest drive force, mass x world units / step^2: from rest to speed 1 takes
+    rover_mass / max_force steps."""
+    max_torque: float = 0.05
+    """Largest steering torque, mass x world units^2 / step^2."""
+    substeps: int = 4
+    """Physics steps per environment step."""
+    solver_iterations: int = 10
+    """Iterations of pymunk's contact solver per physics step."""
+    walls: bool = False
+    """Square walls around each team's world."""
+    wall_half_size: float = 30.0
+    """Half the side of the walled square centred on the origin, world units."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        self.check_positive("rover_radius", "rover_mass", "max_force", "max_torque")
+        self.check_positive("wall_half_size")
+        self.check_at_least(1, "substeps", "solver_iterations")
+
+
+COMPONENTS = ("physics", "scenario", "sensor")
+"""The fields of :class:`DomainConfig` that hold a table of their own."""
+
+
+@dataclasses.dataclass(frozen=True)
+class DomainConfig(ConfigBase):
+    """The tightly coupled multi-rover domain (paper Sections 4.1-4.2).
+
+    Distances are in world units (the paper's: capture radius 4, POI ring radius 15); one
+    environment step is one time step ``t`` of Eqs. 11-16. Defaults are the paper's values.
+    ``physics``, ``scenario`` and ``sensor`` hold their own tables; each accepts an
+    instance, a table (mapping), or for the scenario and sensor a registered kind's name.
+    """
+
+    section: ClassVar[str] = "domain"
+
+    n_rovers: int = 15
+    """Rovers per team (the paper varies 6-15)."""
+    poi_values: tuple[float, ...] = (1.0, 2.0, 3.0, 4.0)
+    """Value V_k of each POI; distinct and positive (the paper: 1..4, max score 10). Their
+    number is the number of POIs; the scenario places them."""
+    n_req: int = 3
+    """Coupling: rovers needed within d_cap of a POI at one step to capture it (Eq. 12)."""
+    d_cap: float = 4.0
+    """Capture radius, world units (Eq. 13)."""
+    d_min: float = 1.0
+    """Lower bound of the distance metric, world units (Eq. 14)."""
+    steps: int = 50
+    """Time steps per episode."""
+    motion: str = "ideal"
+    """Motion model: "ideal" (the paper's kinematics) or "physics" (pymunk bodies, its
+    parameters in [physics]); any registered in :data:`physrover.registry.DYNAMICS`."""
+    physics: Any = None
+    """[physics]: a :class:`PhysicsConfig` (used when motion = "physics")."""
+    scenario: Any = None
+    """[scenario]: start states (default ``"ring"``, the paper's)."""
+    sensor: Any = None
+    """[sensor]: what a rover observes (default ``"quadrants"``, Eqs. 15-16)."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        physics = PhysicsConfig() if self.physics is None else self.physics
+        if isinstance(physics, Mapping):
+            physics = PhysicsConfig.from_dict(physics)
+        check(isinstance(physics, PhysicsConfig), "physics", "must be a PhysicsConfig")
+        object.__setattr__(self, "physics", physics)
+        object.__setattr__(
+            self, "scenario", component(self.scenario, SCENARIOS, "scenario", "ring")
+        )
+        object.__setattr__(self, "sensor", component(self.sensor, SENSORS, "sensor", "quadrants"))
+        check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
+        check(len(self.poi_values) >= 1, "poi_values", "must list at least one POI value")
+        for v in self.poi_values:
+            check(
+                v > 0 and math.isfinite(v),
+                "poi_values",
+                f"every value must be positive and finite, got {v}",
+            )
+        check(
+            len(set(self.poi_values)) == len(self.poi_values),
+            "poi_values",
+            f"values must be distinct, got {list(self.poi_values)}",
+        )
+        check(
+            1 <= self.n_req <= self.n_rovers,
+            "n_req",
+            f"must be in [1, n_rovers={self.n_rovers}], got {self.n_req}",
+        )
+        self.check_positive("d_cap", "d_min")
+        check(
+            self.d_min <= self.d_cap,
+            "d_min",
+            f"must be in (0, d_cap={self.d_cap}], got {self.d_min}",
+        )
+        check(self.steps >= 1, "steps", f"must be >= 1, got {self.steps}")
+        check(self.motion in DYNAMICS, "motion", DYNAMICS.unknown_message(self.motion))
+        self.scenario.check_domain(self)
+        if physics.walls:
+            inner = self.scenario.spawn_extent() + 2 * physics.rover_radius
+            check(
+                physics.wall_half_size > inner,
+                "wall_half_size",
+                f"must exceed the scenario's spawn extent + 2 rover_radius = {inner}, got "
+                f"{physics.wall_half_size}",
+            )
+
+    @property
+    def n_pois(self) -> int:
+        return len(self.poi_values)
+
+    # -- flat names ------------------------------------------------------------------------
+
+    def tables(self) -> dict[str, dict[str, Any]]:
+        """{section: table} of [domain], [physics], [scenario], [sensor], as in TOML."""
+        own = {k: v for k, v in self.to_dict().items() if k not in COMPONENTS}
+        return {
+            "domain": own,
+            "physics": self.physics.to_dict(),
+            "scenario": self.scenario.table(),
+            "sensor": self.sensor.table(),
+        }
+
+    def flat_dict(self) -> dict[str, Any]:
+        """Every field by its bare name (the scenario's and sensor's kinds as ``scenario``
+        and ``sensor``): what ``--set`` and the envs' keyword arguments address."""
+        t = self.tables()
+        flat = {**t["domain"], **t["physics"]}
+        for section in ("scenario", "sensor"):
+            table = dict(t[section])
+            flat[section] = table.pop("kind")
+            flat.update(table)
+        return flat
+
+    def replace(self, **changes: Any) -> DomainConfig:
+        """A copy with ``changes`` applied and validated. Names are bare (``substeps``) or
+        dotted (``physics.substeps``); ``scenario="NAME"`` or ``sensor="NAME"`` picks another
+        kind with its defaults (then set its fields in the same call)."""
+        own, parts = {}, {name: {} for name in COMPONENTS}
+        for name in ("scenario", "sensor"):  # a new kind first: its fields may follow
+            if name in changes:
+                own[name] = changes.pop(name)
+        for name, value in changes.items():
+            section, _, field = name.rpartition(".")
+            if section in COMPONENTS:
+                parts[section][field] = value
+            elif section == "domain" or (not section and name in self.field_names()):
+                own[field] = value
+            else:
+                part = self._section_of(field) if not section else None
+                if part is None:
+                    raise ConfigError(name, f"unknown DomainConfig field{self._hint(field)}")
+                parts[part][field] = value
+        merged = {k: v for k, v in self.to_dict().items()}
+        merged.update(own)
+        current = DomainConfig(**merged) if own else self
+        for section, fields in parts.items():
+            if fields:
+                merged[section] = getattr(current, section).replace(**fields)
+        return DomainConfig(**merged)
+
+    def _section_of(self, name: str) -> str | None:
+        for section in COMPONENTS:
+            if name in getattr(self, section).field_names():
+                return section
+        return None
+
+    def _hint(self, name: str) -> str:
+        return did_you_mean(name, list(self.flat_dict()))
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> DomainConfig:
+        """From the [domain] table, optionally with bare names of the other tables' fields
+        (the envs' keyword arguments; the layout of run directories before 0.2)."""
+        values = dict(values)
+        own = {k: values.pop(k) for k in list(values) if k in cls.field_names()}
+        base = cls(**own)
+        return base.replace(**values) if values else base
+
+    def to_toml(self) -> str:
+        return dumps_toml(self.tables())
+
+    @classmethod
+    def from_toml(cls, text: str) -> DomainConfig:
+        data = loads_toml(text)
+        unknown = sorted(set(data) - {"domain", *COMPONENTS})
+        if unknown:
+            raise ConfigError(unknown[0], "unknown TOML table (expected [domain], [physics], "
+                              "[scenario] or [sensor])")  # fmt: skip
+        return cls.from_tables(data)
+
+    @classmethod
+    def from_tables(cls, data: Mapping[str, Any]) -> DomainConfig:
+        """From the [domain], [physics], [scenario] and [sensor] tables of a TOML file."""
+        domain = dict(data.get("domain", {}))
+        for section in COMPONENTS:
+            if section in domain and section in data:
+                raise ConfigError(f"domain.{section}", f"given in [domain] and as [{section}]")
+            if section in data:
+                domain[section] = data[section]
+        return cls.from_dict(domain)
+
+
+__all__ = ["COMPONENTS", "Component", "DomainConfig", "PhysicsConfig"]

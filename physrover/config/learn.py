@@ -1,0 +1,112 @@
+"""The learner's configuration: ``[learn]``, the CCEA and its fitness methods."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import ClassVar
+
+from physrover.config.base import ConfigBase, check, check_choice
+from physrover.registry import CREDITS, FITNESS_METHODS, TRAINERS
+
+OPTIMIZERS = ("sgd", "adam")
+
+
+@dataclasses.dataclass(frozen=True)
+class LearnConfig(ConfigBase):
+    """The CCEA and the fitness methods (paper Sections 2.1, 3, 4.2; defaults are the paper's).
+
+    Methods: ``D`` and ``G`` use one episode's feedback as fitness; ``average`` the mean and
+    ``leniency`` the max of the feedback over ``n_samples`` episodes with fresh random
+    teammates; ``hall-of-fame`` the feedback with the best team found so far as teammates;
+    ``mean-critic`` (Eq. 4, regular updates Eqs. 6-8), ``max-critic`` (Eq. 3, inexact
+    updates Eqs. 9-10) and the two other combinations ``max-critic-regular`` and
+    ``mean-critic-inexact`` use a fitness critic.
+    """
+
+    section: ClassVar[str] = "learn"
+
+    method: str = "max-critic"
+    """Fitness method (see the class docstring)."""
+    feedback: str = "D"
+    """The credit signal, each rover's immediate feedback: "D" (difference evaluation, Eq. 1),
+    "G", or any registered in :data:`physrover.registry.CREDITS` (physrover.domain.credit)."""
+    generations: int = 5000
+    """Generations to run."""
+    seed: int = 0
+    """Seeds every random draw of the run (world, initial policies, evolution, critics)."""
+    population: int = 50
+    """Policies per rover, k."""
+    hidden: int = 32
+    """Hidden units of each policy (8 -> hidden -> 2, ReLU then tanh)."""
+    mutation_rate: float = 0.01
+    """Probability that an offspring's weight is mutated."""
+    mutation_scale: float = 1.0
+    """Scale of the Cauchy distribution added to a mutated weight."""
+    n_samples: int = 10
+    """Episodes per generation for the average and leniency methods."""
+    eval_episodes: int = 10
+    """Fresh episodes of the champion team per generation (the learning curve)."""
+    critic_hidden: int = 80
+    """Hidden units of the intermediate critic (10 -> hidden -> 1, leaky ReLU)."""
+    leaky_slope: float = 0.01
+    """Slope of the critic's leaky ReLU for negative inputs."""
+    critic_lr: float = 5e-6
+    """Critic learning rate alpha_w (Eqs. 7, 9); 0 freezes the critic at its random
+    initialisation (an ablation: is it the training or the random shape that helps?)."""
+    critic_optimizer: str = "sgd"
+    """"sgd": plain mini-batch gradient steps of Eq. 7/9; "adam": Adam on the same gradient."""
+    replay_trajectories: int = 500
+    """Replay capacity, trajectories, for regular updates."""
+    trajectory_batch: int = 7
+    """Trajectories per mini-batch, regular updates."""
+    trajectory_batches: int = 7
+    """Mini-batches per generation, regular updates."""
+    replay_pairs: int = 25000
+    """Replay capacity, state-action pairs, for inexact updates."""
+    pair_batch: int = 50
+    """State-action pairs per mini-batch, inexact updates."""
+    pair_batches: int = 50
+    """Mini-batches per generation, inexact updates."""
+    checkpoint_every: int = 100
+    """Write a checkpoint every this many generations (and at the end)."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        if self.method not in TRAINERS:
+            check(
+                self.method in FITNESS_METHODS,
+                "method",
+                FITNESS_METHODS.unknown_message(self.method) + f", or a trainer: "
+                f"{', '.join(TRAINERS)}",
+            )
+        check(self.feedback in CREDITS, "feedback", CREDITS.unknown_message(self.feedback))
+        check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
+        check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
+        check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
+        check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
+        self.check_at_least(
+            1, "hidden", "n_samples", "eval_episodes", "critic_hidden", "replay_trajectories",
+            "trajectory_batch", "trajectory_batches", "replay_pairs", "pair_batch",
+            "pair_batches", "checkpoint_every",
+        )  # fmt: skip
+        check(
+            0.0 <= self.mutation_rate <= 1.0,
+            "mutation_rate",
+            f"must be in [0, 1], got {self.mutation_rate}",
+        )
+        check(
+            self.mutation_scale > 0 and math.isfinite(self.mutation_scale),
+            "mutation_scale",
+            f"must be > 0, got {self.mutation_scale}",
+        )
+        check(
+            self.critic_lr >= 0 and math.isfinite(self.critic_lr),
+            "critic_lr",
+            f"must be >= 0 (0 freezes the critic at its random start), got {self.critic_lr}",
+        )
+        check(
+            0.0 <= self.leaky_slope < 1.0,
+            "leaky_slope",
+            f"must be in [0, 1), got {self.leaky_slope}",
+        )

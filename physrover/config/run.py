@@ -1,0 +1,146 @@
+"""A training run's configuration: the domain's tables, [learn] and a trainer's table."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from physrover.config.base import (
+    ConfigError,
+    did_you_mean,
+    dumps_toml,
+    load_toml_file,
+    loads_toml,
+    naming_file,
+)
+from physrover.config.domain import COMPONENTS, DomainConfig
+from physrover.config.learn import LearnConfig
+from physrover.registry import TRAINERS
+
+SHARED_WITH_LEARN = ("seed", "hidden", "eval_episodes", "checkpoint_every")
+"""Fields a trainer's table shares with [learn], set in [learn] only (one seed per run)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """Everything a training run needs: the domain and the learner. TOML: the domain's tables
+    ([domain], [physics], [scenario], [sensor]), [learn], and, when ``[learn] method`` names
+    a gradient-based trainer (``physrover methods``), that trainer's table (e.g. ``[mappo]``),
+    held in ``trainer``; its fields shared with [learn] (:data:`SHARED_WITH_LEARN`) are taken
+    from [learn]."""
+
+    domain: DomainConfig = dataclasses.field(default_factory=DomainConfig)
+    learn: LearnConfig = dataclasses.field(default_factory=LearnConfig)
+    trainer: Any = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.domain, DomainConfig):
+            raise ConfigError("domain", "must be a DomainConfig")
+        if not isinstance(self.learn, LearnConfig):
+            raise ConfigError("learn", "must be a LearnConfig")
+        spec = TRAINERS[self.learn.method] if self.learn.method in TRAINERS else None
+        if spec is None:
+            if self.trainer is not None:
+                raise ConfigError("trainer", f"method {self.learn.method!r} takes no trainer")
+            return
+        trainer = self.trainer if self.trainer is not None else spec.config()
+        if not isinstance(trainer, spec.config):
+            raise ConfigError("trainer", f"must be a {spec.config.__name__}")
+        shared = {name: getattr(self.learn, name) for name in SHARED_WITH_LEARN}
+        object.__setattr__(self, "trainer", trainer.replace(**shared))
+
+    @property
+    def length(self) -> int:
+        """What the run's checkpoints count when it is finished: [learn] generations, or a
+        gradient-based trainer's iterations (its total_episodes / num_envs, rounded up)."""
+        return self.trainer.total_iterations if self.trainer is not None else self.learn.generations
+
+    def _tables(self) -> dict[str, dict[str, Any]]:
+        tables = {**self.domain.tables(), "learn": self.learn.to_dict()}
+        if self.trainer is not None:
+            own = self.trainer.to_dict()
+            tables[self.trainer.section] = {
+                k: v for k, v in own.items() if k not in SHARED_WITH_LEARN
+            }
+        return tables
+
+    def to_toml(self) -> str:
+        return dumps_toml(self._tables())
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
+        sections = {spec.config.section: name for name, spec in TRAINERS.items()}
+        unknown = sorted(set(data) - {"domain", *COMPONENTS, "learn", *sections})
+        if unknown:
+            known = ", ".join(["domain", *COMPONENTS, "learn", *sections])
+            raise ConfigError(unknown[0], f"unknown TOML table (known: {known})")
+        learn = LearnConfig.from_dict(data.get("learn", {}))
+        trainer = None
+        for section, name in sections.items():
+            if section not in data:
+                continue
+            if name != learn.method:
+                raise ConfigError(section, f"a [{section}] table, but method is {learn.method!r}")
+            table = dict(data[section])
+            for shared in SHARED_WITH_LEARN:
+                if shared in table:
+                    raise ConfigError(f"{section}.{shared}", f"set {shared} in [learn]")
+            trainer = TRAINERS[name].config.from_dict(table)
+        return cls(DomainConfig.from_tables(data), learn, trainer)
+
+    @classmethod
+    def from_toml(cls, text: str) -> RunConfig:
+        return cls.from_dict(loads_toml(text))
+
+    @classmethod
+    def load(cls, path: str | Path) -> RunConfig:
+        """The config in a TOML file; every error names the file."""
+        data = load_toml_file(path)
+        with naming_file(path):
+            return cls.from_dict(data)
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> RunConfig:
+        """Apply ``{field: value}`` by bare field name, or ``table.field`` (``mappo.lr``);
+        a bare name that two active tables share is an error that says which to write."""
+        domain, learn, trainer = {}, {}, {}
+        domain_names = self.domain.flat_dict()
+        for name, value in overrides.items():
+            table, _, field = name.rpartition(".")
+            if table in ("domain", *COMPONENTS):
+                domain[name] = value
+            elif table == "learn":
+                learn[field] = value
+            elif table:
+                trainer[(table, field)] = value
+            elif name in domain_names:
+                domain[name] = value
+            elif name in LearnConfig.field_names():
+                learn[name] = value
+            else:
+                trainer[(None, name)] = value
+        new_learn = self.learn.replace(**learn)
+        spec = TRAINERS[new_learn.method] if new_learn.method in TRAINERS else None
+        fields: dict[str, Any] = {}
+        for (table, name), value in trainer.items():
+            if spec is None or table not in (None, spec.config.section):
+                known = [*domain_names, *LearnConfig.field_names()]
+                where = f"{table}." if table else ""
+                raise ConfigError(
+                    f"{where}{name}",
+                    f"unknown config field{did_you_mean(name, known)} (not in the domain's "
+                    "tables or [learn]; `physrover info` lists every field)",
+                )
+            fields[name] = value
+        if spec is not None:
+            section = spec.config.section
+            for name in learn:
+                if name in spec.config.field_names() and name not in SHARED_WITH_LEARN:
+                    raise ConfigError(
+                        name, f"is in [learn] and [{section}]: write learn.{name} or "
+                        f"{section}.{name}"
+                    )  # fmt: skip
+            base = self.trainer if isinstance(self.trainer, spec.config) else spec.config()
+            return RunConfig(self.domain.replace(**domain), new_learn, base.replace(**fields))
+        return RunConfig(self.domain.replace(**domain), new_learn)

@@ -1,0 +1,65 @@
+"""The dynamics seam: how actions move the rovers (``[domain] motion``).
+
+A motion model is a :class:`Dynamics` subclass, built per world as ``cls(config, n_teams)``
+(``config`` the :class:`~physrover.config.DomainConfig`), that writes the rover arrays of the
+world's :class:`~physrover.domain.state.WorldState` (positions, headings and their cosines
+and sines) and nothing else. Built in:
+
+- ``ideal`` (:class:`Ideal`, the paper's kinematics, Section 4.1.2): the action (forward,
+  left) in the rover's frame is the step's displacement, and the rover turns to face it.
+  It is compiled into the world's idealised step kernel (``fused``).
+- ``physics`` (:class:`physrover.domain.physics.PhysicsMotion`): pymunk bodies with mass,
+  finite force and torque and optional collisions, parameters in ``[physics]``.
+
+A new model is a subclass and one :func:`register_dynamics` call; its name then works as
+``motion = "NAME"``. Actions reach :meth:`Dynamics.step` checked (no NaN) and clipped to
+[-1, 1], as float64.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from physrover.domain.kernels import Fused, heading_trig, move
+from physrover.registry import DYNAMICS
+
+
+class Dynamics:
+    """A motion model for E teams; see the module docstring."""
+
+    name: ClassVar[str] = ""
+    """The name it is registered under (``motion = "NAME"``)."""
+    fused: ClassVar[bool] = False
+    """True only for the idealised model, which the world's step kernel moves itself."""
+
+    def __init__(self, config, n_teams: int):
+        self.config = config
+        self.n_teams = int(n_teams)
+
+    def reset(self, state) -> None:
+        """Start an episode from the start positions and headings in ``state``; may adjust
+        them (the physical model pushes overlapping rovers apart). Must set ``cos_h`` and
+        ``sin_h``; the default only does that."""
+        heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+
+    def step(self, state, actions: np.ndarray) -> None:
+        """Move the rovers of ``state`` by one environment step under ``actions`` (E, R, 2),
+        clipped to [-1, 1], float64."""
+        raise NotImplementedError
+
+
+def register_dynamics(cls: type[Dynamics], *, replace: bool = False) -> type[Dynamics]:
+    """Register the motion model ``cls`` under ``cls.name`` (usable as a decorator)."""
+    return DYNAMICS.register_class(cls, Dynamics, "name", replace=replace)
+
+
+@register_dynamics
+class Ideal(Fused, Dynamics, fused=True):
+    """The paper's kinematics (:func:`physrover.domain.kernels.move`)."""
+
+    name: ClassVar[str] = "ideal"
+
+    def step(self, state, actions: np.ndarray) -> None:
+        move(actions, state, np.empty(actions.shape, dtype=np.float32))

@@ -1,0 +1,103 @@
+"""The sensor seam: what each rover observes, and the paper's sensor (Eqs. 14-16).
+
+A sensor is a frozen dataclass whose fields are its parameters (the ``[sensor]`` table,
+``kind = "NAME"`` choosing the class), with a size :attr:`Sensor.dim` and a method
+:meth:`Sensor.observe` that writes the (E, R, dim) observations of a
+:class:`~physrover.domain.state.WorldState`. The learners size their inputs from ``dim``.
+A new sensor is a :class:`Sensor` subclass and one :func:`register_sensor` call (or an
+instance passed in code: ``RoverVectorEnv(50, sensor=MySensor())``). The world calls
+``observe`` after every move; the built-in sensor is instead compiled into the idealised
+step (``fused``), so that step stays one compiled call.
+
+The quadrant sensor (``kind = "quadrants"``, the paper's)
+--------------------------------------------------------
+Each rover senses an 8-vector (the order of the lab's rover-domain code):
+
+- components 0-3: ``s_rover,q = sum_{j in J_q} 1 / delta_ij^2`` over the *other* rovers j of
+  the team in quadrant q (Eq. 15);
+- components 4-7: ``s_poi,q = sum_{k in K_q} V_k / delta_ik^2`` over the POIs k in quadrant
+  q (Eq. 16);
+
+with ``delta = max(||p_i - p_j||, d_min)`` the bounded distance of Eq. 14. The compiled
+implementation is :func:`physrover.domain.kernels.sense`.
+
+Quadrant convention (the one of the paper's lab's rover-domain code)
+--------------------------------------------------------------------
+The bearing ``b`` of an object is measured counter-clockwise from the rover's heading and
+wrapped to ``[-pi, pi)``; the quadrant is ``q = floor((b + pi) / (pi / 2))``:
+
+====  ==============  ====================
+ q    name            bearings
+====  ==============  ====================
+ 0    behind-right    [-180 deg, -90 deg)
+ 1    front-right     [-90 deg, 0)
+ 2    front-left      [0, 90 deg)
+ 3    behind-left     [90 deg, 180 deg)
+====  ==============  ====================
+
+A bearing on a boundary goes to the quadrant that starts there (dead ahead -> 2, dead
+right -> 1, dead left -> 3, dead behind -> 0). The bearing is read from the object's offset
+``(f, l)`` in the rover's frame (``f`` forward, ``l`` left) as ``atan2(l, f)``, so an object
+at the rover's own position (offset 0) has bearing 0 and lies in quadrant 2. The code uses
+the signs of ``f`` and ``l`` instead of ``atan2``: the same answer, exact on the boundaries.
+
+The lab's code computes ``floor((atan2(l, f) + pi) / (2 pi) * 4)`` clipped to 0-3, which
+agrees except for signed zeros: dead behind with ``l = +0`` (what its arithmetic gives for
+heading 0) is its quadrant 3 (here 0), and a coincident object is its quadrant 3 when the
+heading's cosine and sine are both negative (here always 2).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import numpy as np
+
+from physrover.config import Component
+from physrover.domain.kernels import Fused, sense
+from physrover.registry import SENSORS
+
+
+@dataclasses.dataclass(frozen=True)
+class Sensor(Component):
+    """What a rover observes; see the module docstring. Subclasses are frozen dataclasses
+    that set ``kind`` and implement :attr:`dim` and :meth:`observe`."""
+
+    section: ClassVar[str] = "sensor"
+    fused: ClassVar[bool] = False
+    """True only for sensors compiled into the idealised step kernel (the built-in one)."""
+
+    @property
+    def dim(self) -> int:
+        """Observations per rover."""
+        raise NotImplementedError
+
+    def observe(self, state, d_min: float, out: np.ndarray) -> None:
+        """Write the (E, R, dim) float32 observations of every rover of ``state`` (a
+        :class:`~physrover.domain.state.WorldState`) into ``out``; ``d_min`` is the domain's
+        distance bound (Eq. 14), world units."""
+        raise NotImplementedError
+
+
+def register_sensor(cls: type[Sensor], *, replace: bool = False) -> type[Sensor]:
+    """Register the sensor class ``cls`` under ``cls.kind`` (usable as a decorator)."""
+    return SENSORS.register_class(cls, Sensor, "kind", replace=replace)
+
+
+@register_sensor
+@dataclasses.dataclass(frozen=True)
+class Quadrants(Fused, Sensor, fused=True):
+    """The paper's sensor: rover and POI densities in the four quadrants (Eqs. 14-16)."""
+
+    kind: ClassVar[str] = "quadrants"
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+
+    @property
+    def dim(self) -> int:
+        return 8
+
+    def observe(self, state, d_min: float, out: np.ndarray) -> None:
+        sense(state, d_min, out)

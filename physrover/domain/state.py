@@ -1,0 +1,65 @@
+"""WorldState: the state of E teams as one structure of arrays, team axis first.
+
+Every compiled kernel of the world takes this one structure (numba types a ``NamedTuple`` of
+arrays natively) instead of a dozen positional arrays. Each group of arrays has one writer:
+
+- the motion model writes the rovers (``rover_positions``, ``rover_headings`` and their
+  ``cos_h``, ``sin_h``): the idealised step kernel, or the world copying in what the
+  physical model computed;
+- the scenario writes the POIs (``poi_positions``, ``poi_values``) at reset;
+- scoring (:func:`physrover.domain.kernels.score`, Eqs. 11-13) writes ``poi_counts``,
+  ``captured``, ``captured_without``, ``capture_step`` and ``score``.
+
+The arrays are allocated once per world and updated in place; readers copy what they keep.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class WorldState(NamedTuple):
+    """The state of E teams of R rovers and K POIs (see the module docstring)."""
+
+    rover_positions: np.ndarray
+    """(E, R, 2) float64, world units."""
+    rover_headings: np.ndarray
+    """(E, R) float64, radians in [-pi, pi]."""
+    cos_h: np.ndarray
+    """(E, R) float64: cos of the headings (see :mod:`physrover.domain.kernels`)."""
+    sin_h: np.ndarray
+    """(E, R) float64: sin of the headings."""
+    poi_positions: np.ndarray
+    """(E, K, 2) float64, world units."""
+    poi_values: np.ndarray
+    """(E, K) float64, positive."""
+    poi_counts: np.ndarray
+    """(E, K) int64: rovers within d_cap of each POI at the latest scored step (Eq. 13)."""
+    captured: np.ndarray
+    """(E, K) bool: captured at some step so far (Eq. 12)."""
+    captured_without: np.ndarray
+    """(E, R, K) bool: the same with rover i removed (the counterfactual of D, Eq. 1)."""
+    capture_step: np.ndarray
+    """(E, K) int64: the first step at which each POI was captured, -1 if none yet."""
+    score: np.ndarray
+    """(E,) float64: G so far (Eq. 11)."""
+
+    @classmethod
+    def zeros(cls, n_teams: int, n_rovers: int, n_pois: int) -> WorldState:
+        """A state of the given sizes, every array allocated (C-contiguous) and zeroed."""
+        e, r, k = n_teams, n_rovers, n_pois
+        return cls(
+            rover_positions=np.zeros((e, r, 2)),
+            rover_headings=np.zeros((e, r)),
+            cos_h=np.zeros((e, r)),
+            sin_h=np.zeros((e, r)),
+            poi_positions=np.zeros((e, k, 2)),
+            poi_values=np.zeros((e, k)),
+            poi_counts=np.zeros((e, k), dtype=np.int64),
+            captured=np.zeros((e, k), dtype=bool),
+            captured_without=np.zeros((e, r, k), dtype=bool),
+            capture_step=np.full((e, k), -1, dtype=np.int64),
+            score=np.zeros(e),
+        )
