@@ -277,8 +277,9 @@ def draw_frame(
     counts = state.poi_counts
     for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
         _text(img, f"{value:g}", (x + 12, y - 10), 0.45, TEXT, halo=True)
-        met = counts[k] >= domain.n_req
-        text, thickness = f"{counts[k]}/{domain.n_req}", 2 if met else 1
+        n_req = domain.n_req_per_poi[k]
+        met = counts[k] >= n_req
+        text, thickness = f"{counts[k]}/{n_req}", 2 if met else 1
         (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5, thickness)
         colour = POI_CAPTURED if met else TEXT
         _text(img, text, (x - w // 2, y + ring_px + h + 5), 0.5, colour, thickness, halo=True)

@@ -21,7 +21,7 @@ class HalfG(Credit):
 
 @pytest.fixture
 def half_g():
-    register_credit("half-G", HalfG())
+    register_credit("half-G", HalfG(), replace=True)  # the README's example has one too
     yield "half-G"
     del CREDITS._entries["half-G"]
 

@@ -49,7 +49,7 @@ def naming_file(path: str | Path):
 # ----------------------------------------------------------------------------------------------
 
 
-def _coerce(field: str, annotation: Any, value: Any) -> Any:
+def coerce(field: str, annotation: Any, value: Any) -> Any:
     """Return ``value`` converted to the field's declared type, or raise ConfigError.
 
     Accepted conversions are the loss-free ones: int -> float, list -> tuple. A bool is never
@@ -84,7 +84,7 @@ def _coerce(field: str, annotation: Any, value: Any) -> Any:
         (item_type, _ellipsis) = typing.get_args(annotation)
         if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
             raise ConfigError(field, f"expected a list, got {value!r}")
-        return tuple(_coerce(field, item_type, v) for v in value)
+        return tuple(coerce(field, item_type, v) for v in value)
     raise TypeError(f"unsupported config field type {annotation!r} for {field}")
 
 
@@ -99,7 +99,7 @@ class ConfigBase:
     def _coerce_fields(self) -> None:
         hints = typing.get_type_hints(type(self))
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
-            value = _coerce(f.name, hints[f.name], getattr(self, f.name))
+            value = coerce(f.name, hints[f.name], getattr(self, f.name))
             object.__setattr__(self, f.name, value)
 
     def check_at_least(self, minimum: float, *names: str) -> None:

@@ -23,6 +23,8 @@ from physrover.config.base import (
     ConfigBase,
     ConfigError,
     check,
+    check_choice,
+    coerce,
     component,
     did_you_mean,
     dumps_toml,
@@ -68,6 +70,7 @@ class PhysicsConfig(ConfigBase):
 
 
 COMPONENTS = ("physics", "scenario", "sensor")
+SCORED_STATES = ("all", "before-steps")
 """The fields of :class:`DomainConfig` that hold a table of their own."""
 
 
@@ -88,14 +91,19 @@ class DomainConfig(ConfigBase):
     poi_values: tuple[float, ...] = (1.0, 2.0, 3.0, 4.0)
     """Value V_k of each POI; distinct and positive (the paper: 1..4, max score 10). Their
     number is the number of POIs; the scenario places them."""
-    n_req: int = 3
-    """Coupling: rovers needed within d_cap of a POI at one step to capture it (Eq. 12)."""
+    n_req: Any = 3
+    """Coupling: rovers needed within d_cap of a POI at one step to capture it (Eq. 12);
+    one number for every POI, or a list of one per POI (see :attr:`n_req_per_poi`)."""
     d_cap: float = 4.0
     """Capture radius, world units (Eq. 13)."""
     d_min: float = 1.0
     """Lower bound of the distance metric, world units (Eq. 14)."""
     steps: int = 50
     """Time steps per episode."""
+    scored_states: str = "all"
+    """Which states count for captures (Eqs. 11-12): "all", s_0 .. s_T (the start and the
+    state after every step, physrover's default), or "before-steps", s_0 .. s_{T-1} (the
+    lab's rover-domain code: the state before each step; the final state never counts)."""
     motion: str = "ideal"
     """Motion model: "ideal" (the paper's kinematics) or "physics" (pymunk bodies, its
     parameters in [physics]); any registered in :data:`physrover.registry.DYNAMICS`."""
@@ -130,11 +138,14 @@ class DomainConfig(ConfigBase):
             "poi_values",
             f"values must be distinct, got {list(self.poi_values)}",
         )
-        check(
-            1 <= self.n_req <= self.n_rovers,
-            "n_req",
-            f"must be in [1, n_rovers={self.n_rovers}], got {self.n_req}",
-        )
+        object.__setattr__(self, "n_req", self._coerced_n_req())
+        for n in self.n_req_per_poi:
+            check(
+                1 <= n <= self.n_rovers,
+                "n_req",
+                f"must be in [1, n_rovers={self.n_rovers}], got {n}",
+            )
+        check_choice(self.scored_states, SCORED_STATES, "scored_states")
         self.check_positive("d_cap", "d_min")
         check(
             self.d_min <= self.d_cap,
@@ -153,9 +164,26 @@ class DomainConfig(ConfigBase):
                 f"{physics.wall_half_size}",
             )
 
+    def _coerced_n_req(self) -> int | tuple[int, ...]:
+        if isinstance(self.n_req, (list, tuple)):
+            n_req = tuple(coerce("n_req", int, n) for n in self.n_req)
+            check(
+                len(n_req) == len(self.poi_values),
+                "n_req",
+                f"a list needs one coupling per POI ({len(self.poi_values)}), got {len(n_req)}",
+            )
+            return n_req
+        return coerce("n_req", int, self.n_req)
+
     @property
     def n_pois(self) -> int:
         return len(self.poi_values)
+
+    @property
+    def n_req_per_poi(self) -> tuple[int, ...]:
+        """The coupling of each POI, in the order of ``poi_values``."""
+        n_req = self.n_req
+        return n_req if isinstance(n_req, tuple) else (n_req,) * len(self.poi_values)
 
     # -- flat names ------------------------------------------------------------------------
 

@@ -6,12 +6,15 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
 
 - ``"D"``: the difference evaluation ``D_i = G(z) - G(z_-i)`` with the null counterfactual
   (rover i's whole trajectory removed), from the world's running records;
-- ``"G"``: the team score G for every rover of the team.
+- ``"G"``: the team score G for every rover of the team;
+- ``"D++"``: D with counterfactual partners (:func:`physrover.domain.scoring.d_plus_plus`),
+  which credits a rover that would have completed a coupling with partners.
 
 A new signal is a :class:`Credit` subclass (a ``__call__(world) -> (E, R)``) and one
 :func:`register_credit` call, from any module; its name then works in TOML and
 ``--set feedback=NAME``. It reads the world after the episode: ``world.G`` (E,),
-``world.D`` (E, R), ``world.scores`` (captures per POI, with and without each rover),
+``world.D`` (E, R), ``world.state`` (a :class:`~physrover.domain.state.WorldState`: captures
+per POI with and without each rover, who was in range of which POI at every step),
 ``world.position_history`` and the trajectories.
 """
 
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from physrover.domain.scoring import d_plus_plus
 from physrover.registry import CREDITS
 
 
@@ -45,6 +49,13 @@ class TeamScore(Credit):
         return np.repeat(world.G[:, None], world.n_rovers, axis=1)
 
 
+class DPlusPlus(Credit):
+    """D++ (Rahmattalabi et al. 2016): :func:`physrover.domain.scoring.d_plus_plus`."""
+
+    def __call__(self, world) -> np.ndarray:
+        return d_plus_plus(world.state, world.n_req)
+
+
 def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Credit:
     """Make ``credit`` the signal named ``name`` (``[learn] feedback = "NAME"``)."""
     if not isinstance(credit, Credit):
@@ -54,3 +65,4 @@ def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Cred
 
 register_credit("D", Difference())
 register_credit("G", TeamScore())
+register_credit("D++", DPlusPlus())

@@ -109,9 +109,9 @@ def _sense_team(e, state, d_min_sq, obs, acc):
 
 
 @jit
-def _score_team(e, state, d_cap_sq, n_req, t, near):
+def _score_team(e, state, d_cap_sq, n_req, t):
     """Score step ``t`` of team ``e`` (Eqs. 11-13 and D's counterfactual captures) in
-    ``state``'s scoring arrays; ``near`` is (R, K) int64 scratch.
+    ``state``'s scoring arrays; ``n_req`` (K,) int64 is each POI's coupling.
 
     Eq. 13 uses the bounded distance of Eq. 14, ``max(d, d_min) <= d_cap``, which is
     ``d <= d_cap`` since the config keeps ``d_min <= d_cap``.
@@ -120,6 +120,7 @@ def _score_team(e, state, d_cap_sq, n_req, t, near):
     n_rovers = positions.shape[1]
     n_pois = poi_positions.shape[1]
     count = state.poi_counts[e]
+    near = state.in_range[t, e]
     captured, captured_without = state.captured, state.captured_without
     for k in range(n_pois):
         px = poi_positions[e, k, 0]
@@ -128,18 +129,18 @@ def _score_team(e, state, d_cap_sq, n_req, t, near):
         for i in range(n_rovers):
             dx = px - positions[e, i, 0]
             dy = py - positions[e, i, 1]
-            inside = np.int64(dx * dx + dy * dy <= d_cap_sq)  # Eq. 13
+            inside = dx * dx + dy * dy <= d_cap_sq  # Eq. 13
             near[i, k] = inside
-            n += inside
+            n += np.int64(inside)
         count[k] = n
     total = 0.0
     for k in range(n_pois):
-        if count[k] >= n_req:  # Eq. 12
+        if count[k] >= n_req[k]:  # Eq. 12
             if not captured[e, k]:
                 state.capture_step[e, k] = t
                 captured[e, k] = True
         for i in range(n_rovers):  # Eq. 12 without rover i
-            if count[k] - near[i, k] >= n_req:
+            if count[k] - np.int64(near[i, k]) >= n_req[k]:
                 captured_without[e, i, k] = True
         if captured[e, k]:  # Eq. 11
             total += state.poi_values[e, k]
@@ -158,12 +159,11 @@ def sense(state, d_min, obs):
 @jit
 def score(state, d_cap, n_req, t):
     """Score step ``t`` (0 after reset, then 1, 2, ...) of every team in ``state``: the POIs'
-    rover counts, captures (Eqs. 12-13), G so far (Eq. 11) and the captures without each
-    rover (the counterfactual of D, Eq. 1)."""
-    n_teams, n_rovers = state.cos_h.shape
-    near = np.empty((n_rovers, state.poi_positions.shape[1]), np.int64)
-    for e in range(n_teams):
-        _score_team(e, state, d_cap * d_cap, n_req, t, near)
+    rover counts and which rovers are in range (``in_range[t]``), captures (Eqs. 12-13)
+    under each POI's coupling ``n_req`` (K,) int64, G so far (Eq. 11) and the captures
+    without each rover (the counterfactual of D, Eq. 1)."""
+    for e in range(state.cos_h.shape[0]):
+        _score_team(e, state, d_cap * d_cap, n_req, t)
 
 
 @jit
@@ -219,22 +219,22 @@ def move(commands, state, actions):
 
 
 @jit
-def ideal_step(commands, state, d_min, d_cap, n_req, t, actions, positions, headings, obs):
-    """One idealised world step of every team: :func:`move`, :func:`sense` and :func:`score`
-    (step ``t``) composed team by team, with the records: ``actions`` (E, R, 2) float32 the
-    clipped commands, ``positions`` (E, R, 2) and ``headings`` (E, R) copies of the new
-    state, ``obs`` (E, R, 8) float32 the new observations. Returns False, having changed
-    nothing, if a command is NaN.
+def ideal_step(commands, state, d_min, d_cap, n_req, t, scored, actions, positions, headings, obs):
+    """One idealised world step of every team: :func:`move`, :func:`sense` and (if
+    ``scored``) :func:`score` of step ``t`` composed team by team, with the records:
+    ``actions`` (E, R, 2) float32 the clipped commands, ``positions`` (E, R, 2) and
+    ``headings`` (E, R) copies of the new state, ``obs`` (E, R, 8) float32 the new
+    observations. Returns False, having changed nothing, if a command is NaN.
     """
     if _any_nan(commands):
         return False
     n_teams, n_rovers = state.cos_h.shape
-    near = np.empty((n_rovers, state.poi_positions.shape[1]), np.int64)
     acc = np.empty(8)
     for e in range(n_teams):
         _move_team(e, commands, state, actions)
         _sense_team(e, state, d_min * d_min, obs, acc)
-        _score_team(e, state, d_cap * d_cap, n_req, t, near)
+        if scored:
+            _score_team(e, state, d_cap * d_cap, n_req, t)
         for i in range(n_rovers):
             positions[e, i, 0] = state.rover_positions[e, i, 0]
             positions[e, i, 1] = state.rover_positions[e, i, 1]

@@ -34,6 +34,7 @@ def start_episode(state) -> None:
     """Forget every capture in ``state`` (a :class:`~physrover.domain.state.WorldState`):
     the start of an episode, before step 0 is scored."""
     state.poi_counts[:] = 0
+    state.in_range[:] = False
     state.captured[:] = False
     state.captured_without[:] = False
     state.capture_step[:] = -1
@@ -43,3 +44,41 @@ def start_episode(state) -> None:
 def difference(state) -> np.ndarray:
     """(E, R) difference evaluation of every rover so far (Eq. 1, null counterfactual)."""
     return state.score[:, None] - team_score(state.captured_without, state.poi_values)
+
+
+def d_plus_plus(state, n_req: np.ndarray) -> np.ndarray:
+    """(E, R) D++ of every rover (Rahmattalabi, Chung, Colby and Tumer 2016, Algorithm 1).
+
+    ``D++_i(n) = (G(z + n z_i) - G(z)) / n`` is the gain per partner of adding ``n`` copies
+    of rover i's whole trajectory (counterfactual partners at its positions at every step);
+    a POI counts for ``G(z + n z_i)`` if at some scored step the rovers in range of it,
+    plus n if rover i was in range, reach its coupling. With ``N = max_k n_req_k - 1``
+    partners (enough to complete any POI rover i visited alone):
+
+    - if ``D++_i(N) <= D_i``, D++ is D_i (the rover gains nothing from partners);
+    - else D++ is ``D++_i(n)`` for the smallest n in 1..N with ``D++_i(n) > D_i``.
+
+    The lab's later code (zerbeln/RoverDomain) differs: it divides by ``n + 1`` and keeps
+    the largest value over n; this is the published algorithm. With ``n_req = 1`` (N = 0)
+    D++ is D. Reads the episode's record ``state.in_range`` (T + 1, E, R, K) and G, D.
+    """
+    D = difference(state)
+    partners = int(np.max(n_req)) - 1
+    if partners < 1:
+        return D
+    near = state.in_range  # (T + 1, E, R, K)
+    count = near.sum(axis=2, dtype=np.int64)[:, :, None, :]  # (T + 1, E, 1, K)
+    G = state.score[:, None]  # (E, 1)
+    values = state.poi_values[:, None, :]  # (E, 1, K)
+    result = D.copy()
+    undecided = np.ones(D.shape, dtype=bool)
+    gains = {}
+    for n in (partners, *range(1, partners)):
+        captured = ((count + n * near) >= n_req).any(axis=0)  # (E, R, K)
+        gains[n] = ((captured * values).sum(-1) - G) / n
+    undecided &= gains[partners] > D  # else D++ is D
+    for n in range(1, partners + 1):
+        take = undecided & (gains[n] > D)
+        result[take] = gains[n][take]
+        undecided &= ~take
+    return result

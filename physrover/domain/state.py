@@ -8,7 +8,7 @@ arrays natively) instead of a dozen positional arrays. Each group of arrays has 
   physical model computed;
 - the scenario writes the POIs (``poi_positions``, ``poi_values``) at reset;
 - scoring (:func:`physrover.domain.kernels.score`, Eqs. 11-13) writes ``poi_counts``,
-  ``captured``, ``captured_without``, ``capture_step`` and ``score``.
+  ``in_range``, ``captured``, ``captured_without``, ``capture_step`` and ``score``.
 
 The arrays are allocated once per world and updated in place; readers copy what they keep.
 """
@@ -37,6 +37,10 @@ class WorldState(NamedTuple):
     """(E, K) float64, positive."""
     poi_counts: np.ndarray
     """(E, K) int64: rovers within d_cap of each POI at the latest scored step (Eq. 13)."""
+    in_range: np.ndarray
+    """(T + 1, E, R, K) bool: rover i within d_cap of POI k at step t (Eq. 13), the record
+    of every scored step of the episode (rows of unscored steps stay False); what
+    counterfactual credits (D++) replay."""
     captured: np.ndarray
     """(E, K) bool: captured at some step so far (Eq. 12)."""
     captured_without: np.ndarray
@@ -47,8 +51,9 @@ class WorldState(NamedTuple):
     """(E,) float64: G so far (Eq. 11)."""
 
     @classmethod
-    def zeros(cls, n_teams: int, n_rovers: int, n_pois: int) -> WorldState:
-        """A state of the given sizes, every array allocated (C-contiguous) and zeroed."""
+    def zeros(cls, n_teams: int, n_rovers: int, n_pois: int, steps: int = 0) -> WorldState:
+        """A state of the given sizes (``steps`` per episode), every array allocated
+        (C-contiguous) and zeroed."""
         e, r, k = n_teams, n_rovers, n_pois
         return cls(
             rover_positions=np.zeros((e, r, 2)),
@@ -58,6 +63,7 @@ class WorldState(NamedTuple):
             poi_positions=np.zeros((e, k, 2)),
             poi_values=np.zeros((e, k)),
             poi_counts=np.zeros((e, k), dtype=np.int64),
+            in_range=np.zeros((steps + 1, e, r, k), dtype=bool),
             captured=np.zeros((e, k), dtype=bool),
             captured_without=np.zeros((e, r, k), dtype=bool),
             capture_step=np.full((e, k), -1, dtype=np.int64),

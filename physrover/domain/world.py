@@ -121,7 +121,9 @@ class RoverWorld:
         self.sensor = config.sensor
         self.obs_dim = int(self.sensor.dim)
         self.dynamics = DYNAMICS[config.motion](config, self.n_teams)
-        self.state = WorldState.zeros(self.n_teams, self.n_rovers, self.n_pois)
+        self.state = WorldState.zeros(self.n_teams, self.n_rovers, self.n_pois, config.steps)
+        self.n_req = np.array(config.n_req_per_poi, dtype=np.int64)  # (K,) coupling per POI
+        self._scores_final_state = config.scored_states == "all"
         shape = (config.steps, self.n_teams, self.n_rovers)
         self.observations = np.zeros((*shape, self.obs_dim), dtype=np.float32)
         self.actions = np.zeros((*shape, ACTION_DIM), dtype=np.float32)
@@ -198,7 +200,8 @@ class RoverWorld:
         cfg, t = self.config, self.t
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
         ok = ideal_step(
-            actions, self.state, cfg.d_min, cfg.d_cap, cfg.n_req, t + 1, self.actions[t],
+            actions, self.state, cfg.d_min, cfg.d_cap, self.n_req, t + 1, self._scored(t + 1),
+            self.actions[t],
             self.position_history[t + 1], self.heading_history[t + 1], obs,
         )  # fmt: skip
         if not ok:
@@ -213,12 +216,17 @@ class RoverWorld:
         cfg, t = self.config, self.t
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
         self.sensor.observe(self.state, cfg.d_min, obs)
-        score(self.state, cfg.d_cap, cfg.n_req, t)
+        if self._scored(t):
+            score(self.state, cfg.d_cap, self.n_req, t)
         self.position_history[t] = self.state.rover_positions
         self.heading_history[t] = self.state.rover_headings
         if t < cfg.steps:
             self.observations[t] = obs
         return obs
+
+    def _scored(self, t: int) -> bool:
+        """Whether state t counts for captures (``scored_states``: the final one may not)."""
+        return t < self.config.steps or self._scores_final_state
 
     # -- results -----------------------------------------------------------------------------
 
