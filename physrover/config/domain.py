@@ -69,6 +69,15 @@ class PhysicsConfig(ConfigBase):
         self.check_at_least(1, "substeps", "solver_iterations")
 
 
+def _physics(value: Any) -> PhysicsConfig:
+    """A PhysicsConfig from None (the defaults), a table or an instance."""
+    physics = PhysicsConfig() if value is None else value
+    if isinstance(physics, Mapping):
+        physics = PhysicsConfig.from_dict(physics)
+    check(isinstance(physics, PhysicsConfig), "physics", "must be a PhysicsConfig")
+    return physics
+
+
 COMPONENTS = ("physics", "scenario", "sensor")
 SCORED_STATES = ("all", "before-steps")
 """The fields of :class:`DomainConfig` that hold a table of their own."""
@@ -116,10 +125,7 @@ class DomainConfig(ConfigBase):
 
     def __post_init__(self) -> None:
         self._coerce_fields()
-        physics = PhysicsConfig() if self.physics is None else self.physics
-        if isinstance(physics, Mapping):
-            physics = PhysicsConfig.from_dict(physics)
-        check(isinstance(physics, PhysicsConfig), "physics", "must be a PhysicsConfig")
+        physics = _physics(self.physics)
         object.__setattr__(self, "physics", physics)
         object.__setattr__(
             self, "scenario", component(self.scenario, SCENARIOS, "scenario", "ring")
@@ -212,37 +218,32 @@ class DomainConfig(ConfigBase):
         """A copy with ``changes`` applied and validated. Names are bare (``substeps``) or
         dotted (``physics.substeps``); ``scenario="NAME"`` or ``sensor="NAME"`` picks another
         kind with its defaults (then set its fields in the same call)."""
-        own, parts = {}, {name: {} for name in COMPONENTS}
-        for name in ("scenario", "sensor"):  # a new kind first: its fields may follow
-            if name in changes:
-                own[name] = changes.pop(name)
+        parts = {
+            "physics": _physics(changes.pop("physics", self.physics)),
+            "scenario": component(changes.pop("scenario", self.scenario), SCENARIOS,
+                                  "scenario", "ring"),
+            "sensor": component(changes.pop("sensor", self.sensor), SENSORS, "sensor",
+                                "quadrants"),
+        }  # fmt: skip
+        own, fields = {}, {name: {} for name in COMPONENTS}
         for name, value in changes.items():
             section, _, field = name.rpartition(".")
             if section in COMPONENTS:
-                parts[section][field] = value
+                fields[section][field] = value
             elif section == "domain" or (not section and name in self.field_names()):
                 own[field] = value
             else:
-                part = self._section_of(field) if not section else None
-                if part is None:
-                    raise ConfigError(name, f"unknown DomainConfig field{self._hint(field)}")
-                parts[part][field] = value
-        merged = {k: v for k, v in self.to_dict().items()}
-        merged.update(own)
-        current = DomainConfig(**merged) if own else self
-        for section, fields in parts.items():
-            if fields:
-                merged[section] = getattr(current, section).replace(**fields)
-        return DomainConfig(**merged)
-
-    def _section_of(self, name: str) -> str | None:
-        for section in COMPONENTS:
-            if name in getattr(self, section).field_names():
-                return section
-        return None
-
-    def _hint(self, name: str) -> str:
-        return did_you_mean(name, list(self.flat_dict()))
+                part = next((p for p in COMPONENTS if field in parts[p].field_names()), None)
+                if section or part is None:
+                    hint = did_you_mean(field, [*self.field_names(),
+                                                *(f for p in parts.values()
+                                                  for f in p.field_names())])  # fmt: skip
+                    raise ConfigError(name, f"unknown DomainConfig field{hint}")
+                fields[part][field] = value
+        for section, values in fields.items():
+            if values:
+                parts[section] = parts[section].replace(**values)
+        return DomainConfig(**{**self.to_dict(), **own, **parts})
 
     @classmethod
     def from_dict(cls, values: Mapping[str, Any]) -> DomainConfig:

@@ -105,7 +105,9 @@ class RunConfig:
         """Apply ``{field: value}`` by bare field name, or ``table.field`` (``mappo.lr``);
         a bare name that two active tables share is an error that says which to write."""
         domain, learn, trainer = {}, {}, {}
-        domain_names = self.domain.flat_dict()
+        # the fields of a scenario or sensor chosen in the same overrides are domain fields
+        kinds = {k: overrides[k] for k in ("scenario", "sensor") if k in overrides}
+        domain_names = self.domain.replace(**kinds).flat_dict()
         for name, value in overrides.items():
             table, _, field = name.rpartition(".")
             if table in ("domain", *COMPONENTS):

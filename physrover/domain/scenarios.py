@@ -5,7 +5,28 @@ A scenario is a frozen dataclass whose fields are its parameters (the ``[scenari
 
 - ``ring`` (the paper's, default): POIs evenly on a ring of radius ``poi_ring_radius``, the
   first at angle 0, the rest counter-clockwise; rovers uniform in a disc of radius
-  ``spawn_radius`` at the origin, headings uniform in [-pi, pi).
+  ``spawn_radius`` at the origin, headings uniform in [-pi, pi);
+- ``ring-random`` (the lab's experiment harness): POI angles uniform in [-pi, pi), radii
+  uniform in [(1 - ring_thickness) poi_ring_radius, poi_ring_radius]; rovers as ``ring``;
+- ``uniform``: POIs uniform in the square of half side ``half_size`` at the origin, at least
+  ``min_separation`` apart; rovers as ``ring``;
+- ``explicit``: POI positions listed in the table (values are [domain] ``poi_values``), and
+  optionally the rovers' positions and headings (else drawn as ``ring``).
+
+Redraws (``redraw``, every scenario):
+
+- ``"episode"`` (default): every episode of every team starts from its own draw;
+- ``"generation"``: one draw per reset of the world, shared by all its teams but the last
+  ``RoverWorld.fresh_teams`` (the CCEA's evaluation episodes, which draw their own): the
+  lab's harness, which draws one start state per generation for all training episodes
+  and a fresh one for evaluation (it evaluates one; the CCEA here evaluates
+  ``eval_episodes`` fresh ones);
+- ``"never"``: every episode of every team starts from one draw made from a generator
+  seeded with ``layout_seed``, the same in every run (so also across learning seeds).
+
+Under ``"episode"`` and ``"generation"`` the teams' generators advance identically (every
+team draws, shared draws are discarded), so a team's later episodes do not depend on the
+mode of earlier ones.
 
 A new scenario is a :class:`Scenario` subclass and one :func:`register_scenario` call, from
 any module; its name then works in TOML (``[scenario] kind = "NAME"``) and on the command
@@ -24,7 +45,7 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from physrover.config import Component
+from physrover.config import Component, check, check_choice
 from physrover.registry import SCENARIOS
 
 
@@ -41,12 +62,30 @@ class StartState(NamedTuple):
     """(E, K), positive."""
 
 
+REDRAWS = ("episode", "generation", "never")
+
+
 @dataclasses.dataclass(frozen=True)
 class Scenario(Component):
     """Start states of episodes; see the module docstring. Subclasses are frozen dataclasses
-    that set ``kind`` and implement :meth:`draw` and :meth:`extent`."""
+    that set ``kind`` and implement :meth:`draw` and :meth:`extent` (and may check their
+    parameters in :meth:`validate`)."""
 
     section: ClassVar[str] = "scenario"
+
+    redraw: str = "episode"
+    """How often start states are drawn: "episode", "generation" or "never" (module doc)."""
+    layout_seed: int = 0
+    """Seed of the one start state under redraw = "never"."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        check_choice(self.redraw, REDRAWS, "redraw")
+        self.check_at_least(0, "layout_seed")
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise :class:`~physrover.config.ConfigError` for bad parameters (by default none)."""
 
     def draw(
         self, rngs: Sequence[np.random.Generator], n_rovers: int, poi_values: np.ndarray
@@ -93,39 +132,195 @@ def per_team(array: np.ndarray, n_teams: int) -> np.ndarray:
     return np.array(np.broadcast_to(array, (n_teams, *np.shape(array))), dtype=np.float64)
 
 
+@dataclasses.dataclass(frozen=True)
+class SpawnDisc(Scenario):
+    """A scenario whose rovers start in the spawn disc (:func:`spawn_in_disc`); subclasses
+    place the POIs (:meth:`pois`, drawn after the rovers from each team's generator)."""
+
+    spawn_radius: float = 1.5
+    """Rovers start uniformly at random in a disc of this radius at the origin, world units."""
+
+    def validate(self) -> None:
+        self.check_positive("spawn_radius")
+
+    def pois(self, rngs: Sequence[np.random.Generator], n_pois: int) -> np.ndarray:
+        """(E, K, 2) POI positions, world units."""
+        raise NotImplementedError
+
+    def poi_extent(self) -> float:
+        """The radius of a disc at the origin holding every POI, world units."""
+        raise NotImplementedError
+
+    def draw(self, rngs, n_rovers, poi_values):
+        positions, headings = spawn_in_disc(rngs, n_rovers, self.spawn_radius)
+        pois = self.pois(rngs, len(poi_values))
+        return StartState(positions, headings, pois, per_team(poi_values, len(rngs)))
+
+    def extent(self) -> float:
+        return max(self.poi_extent(), self.spawn_radius)
+
+    def spawn_extent(self) -> float:
+        return self.spawn_radius
+
+
 @register_scenario
 @dataclasses.dataclass(frozen=True)
-class Ring(Scenario):
+class Ring(SpawnDisc):
     """The paper's: POIs evenly on a ring, rovers in a disc at its centre."""
 
     kind: ClassVar[str] = "ring"
 
     poi_ring_radius: float = 15.0
     """POIs lie evenly on a circle of this radius around the origin, world units."""
-    spawn_radius: float = 1.5
-    """Rovers start uniformly at random in a disc of this radius at the origin, world units."""
 
-    def __post_init__(self) -> None:
-        self._coerce_fields()
-        self.check_positive("poi_ring_radius", "spawn_radius")
+    def validate(self) -> None:
+        super().validate()
+        self.check_positive("poi_ring_radius")
 
     def poi_layout(self, n_pois: int) -> np.ndarray:
         """(K, 2): evenly on the ring, the first at angle 0, the rest counter-clockwise."""
         angles = 2.0 * np.pi * np.arange(n_pois) / n_pois
         return self.poi_ring_radius * np.stack([np.cos(angles), np.sin(angles)], -1)
 
+    def pois(self, rngs, n_pois):
+        return per_team(self.poi_layout(n_pois), len(rngs))
+
+    def poi_extent(self) -> float:
+        return self.poi_ring_radius
+
+
+@register_scenario
+@dataclasses.dataclass(frozen=True)
+class RingRandom(SpawnDisc):
+    """POIs at random angles on a ring (the lab's harness); rovers in the spawn disc."""
+
+    kind: ClassVar[str] = "ring-random"
+
+    poi_ring_radius: float = 15.0
+    """Outer radius of the ring, world units."""
+    ring_thickness: float = 0.0
+    """Fraction of the radius the ring extends inwards: radii uniform in
+    [(1 - ring_thickness) poi_ring_radius, poi_ring_radius] (the lab's poi_init_thickness)."""
+
+    def validate(self) -> None:
+        super().validate()
+        self.check_positive("poi_ring_radius")
+        self.check_unit("ring_thickness")
+
+    def pois(self, rngs, n_pois):
+        u = np.stack([rng.random((n_pois, 2)) for rng in rngs])  # (E, K, 2): angle, radius
+        angle = 2.0 * np.pi * u[..., 0] - np.pi
+        inner = (1.0 - self.ring_thickness) * self.poi_ring_radius
+        radius = inner + (self.poi_ring_radius - inner) * u[..., 1]
+        return np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=-1)
+
+    def poi_extent(self) -> float:
+        return self.poi_ring_radius
+
+
+@register_scenario
+@dataclasses.dataclass(frozen=True)
+class Uniform(SpawnDisc):
+    """POIs uniform in a square, at least ``min_separation`` apart; rovers in the spawn disc."""
+
+    kind: ClassVar[str] = "uniform"
+
+    half_size: float = 15.0
+    """Half the side of the square centred on the origin, world units."""
+    min_separation: float = 0.0
+    """Smallest distance between two POIs, world units (redrawn until it holds)."""
+
+    MAX_TRIES: ClassVar[int] = 1000
+
+    def validate(self) -> None:
+        super().validate()
+        self.check_positive("half_size")
+        self.check_at_least(0.0, "min_separation")
+
+    def check_domain(self, domain) -> None:
+        # Loose packing bound: K discs of diameter min_separation in the square.
+        k, side = domain.n_pois, 2.0 * self.half_size + self.min_separation
+        check(
+            k * (self.min_separation / 2) ** 2 * np.pi <= 0.5 * side * side,
+            "min_separation",
+            f"{k} POIs cannot be {self.min_separation} apart in a square of half side "
+            f"{self.half_size} (keep their discs within half the square's area)",
+        )
+
+    def pois(self, rngs, n_pois):
+        return np.stack([self._team_pois(rng, n_pois) for rng in rngs])
+
+    def _team_pois(self, rng: np.random.Generator, k: int) -> np.ndarray:
+        """(K, 2): each POI drawn until it is min_separation from those before it."""
+        out = np.empty((k, 2))
+        for j in range(k):
+            for _ in range(self.MAX_TRIES):
+                p = self.half_size * (2.0 * rng.random(2) - 1.0)
+                if j == 0 or np.min(np.hypot(*(out[:j] - p).T)) >= self.min_separation:
+                    break
+            else:
+                raise RuntimeError(
+                    f"uniform scenario: no place for POI {j} after {self.MAX_TRIES} draws; "
+                    "lower min_separation"
+                )
+            out[j] = p
+        return out
+
+    def poi_extent(self) -> float:
+        return self.half_size * np.sqrt(2.0)
+
+
+@register_scenario
+@dataclasses.dataclass(frozen=True)
+class Explicit(Scenario):
+    """POI positions (and optionally the rovers' start) written in the config."""
+
+    kind: ClassVar[str] = "explicit"
+
+    poi_positions: tuple[tuple[float, ...], ...] = ((15.0, 0.0), (0.0, 15.0), (-15.0, 0.0),
+                                                    (0.0, -15.0))  # fmt: skip
+    """[[x, y], ...] of every POI, world units, in the order of [domain] poi_values."""
+    rover_positions: tuple[tuple[float, ...], ...] = ()
+    """[[x, y], ...] of every rover, world units; empty: drawn in the spawn disc."""
+    rover_headings: tuple[float, ...] = ()
+    """Every rover's heading, radians; empty: drawn uniformly in [-pi, pi)."""
+    spawn_radius: float = 1.5
+    """The spawn disc's radius when rover_positions is empty, world units."""
+
+    def validate(self) -> None:
+        self.check_positive("spawn_radius")
+        for name in ("poi_positions", "rover_positions"):
+            for p in getattr(self, name):
+                check(len(p) == 2 and all(np.isfinite(p)), name,
+                      f"every position must be a finite [x, y], got {list(p)}")  # fmt: skip
+        check(all(np.isfinite(self.rover_headings)), "rover_headings", "must be finite")
+
+    def check_domain(self, domain) -> None:
+        check(
+            len(self.poi_positions) == domain.n_pois,
+            "poi_positions",
+            f"need one position per POI value ({domain.n_pois}), got {len(self.poi_positions)}",
+        )
+        for name in ("rover_positions", "rover_headings"):
+            n = len(getattr(self, name))
+            check(n in (0, domain.n_rovers), name,
+                  f"need none or one per rover ({domain.n_rovers}), got {n}")  # fmt: skip
+
     def draw(self, rngs, n_rovers, poi_values):
         positions, headings = spawn_in_disc(rngs, n_rovers, self.spawn_radius)
         n_teams = len(rngs)
-        pois = per_team(self.poi_layout(len(poi_values)), n_teams)
+        if self.rover_positions:
+            positions = per_team(np.array(self.rover_positions), n_teams)
+        if self.rover_headings:
+            headings = per_team(np.array(self.rover_headings), n_teams)
+        pois = per_team(np.array(self.poi_positions), n_teams)
         return StartState(positions, headings, pois, per_team(poi_values, n_teams))
 
     def extent(self) -> float:
-        return max(self.poi_ring_radius, self.spawn_radius)
-
-    def spawn_extent(self) -> float:
-        return self.spawn_radius
+        points = [*self.poi_positions, *self.rover_positions]
+        return max([self.spawn_radius, *(float(np.hypot(*p)) for p in points)])
 
 
-__all__ = ["Ring", "Scenario", "StartState", "per_team", "register_scenario",
-           "spawn_in_disc"]  # fmt: skip
+__all__ = ["Explicit", "REDRAWS", "Ring", "RingRandom", "Scenario", "SpawnDisc", "StartState",
+           "Uniform",
+           "per_team", "register_scenario", "spawn_in_disc"]  # fmt: skip

@@ -78,6 +78,11 @@ class StartOverrides:
         return cls(**options)
 
 
+def _given(given: Any, drawn: np.ndarray) -> Any:
+    """An override if it is given, else the drawn value."""
+    return drawn if given is None else given
+
+
 def _team_array(name: str, value: Any, shape: tuple[int, ...], n_teams: int) -> np.ndarray:
     """``value`` as a float64 array of shape (E, *shape), broadcast from ``shape`` if needed."""
     arr = np.asarray(value, dtype=np.float64)
@@ -132,6 +137,10 @@ class RoverWorld:
         self.heading_history = np.zeros(states)
         # idealised motion and the built-in sensor: one compiled call per step
         self._fused = self.dynamics.fused and self.sensor.fused
+        self.fresh_teams = 0
+        """Under the scenario's redraw = "generation", the last this many teams draw their own
+        start states (the CCEA's evaluation episodes); the others share one."""
+        self._fixed_start: StartState | None = None  # redraw = "never"
         self.t = -1  # not reset yet
 
     # -- state -------------------------------------------------------------------------------
@@ -142,28 +151,26 @@ class RoverWorld:
         """Start a new episode in every team; returns the (E, R, n_obs) float32 observations.
 
         The scenario draws the start state, team e from ``rngs[e]`` alone (so a team's start
-        state depends only on its own generator). It draws even where ``overrides`` give
+        state depends only on its own generator), then shares draws as its ``redraw`` mode
+        says (:mod:`physrover.domain.scenarios`). It draws even where ``overrides`` give
         parts of the start, so the generators advance identically with and without them.
         """
         if len(rngs) != self.n_teams:
             raise ValueError(f"need one generator per team ({self.n_teams}), got {len(rngs)}")
-        cfg, e, r, k = self.config, self.n_teams, self.n_rovers, self.n_pois
-        start = cfg.scenario.draw(rngs, r, np.asarray(cfg.poi_values, dtype=np.float64))
-        if not isinstance(start, StartState):
-            raise TypeError(f"{type(cfg.scenario).__name__}.draw must return a StartState")
+        e, r, k = self.n_teams, self.n_rovers, self.n_pois
+        start = self._draw(rngs)
         o = overrides or StartOverrides()
-        pick = lambda given, drawn: drawn if given is None else given  # noqa: E731
         state = self.state
         state.rover_positions[:] = _team_array(
-            "rover_positions", pick(o.rover_positions, start.rover_positions), (r, 2), e
+            "rover_positions", _given(o.rover_positions, start.rover_positions), (r, 2), e
         )
         state.rover_headings[:] = _team_array(
-            "rover_headings", pick(o.rover_headings, start.rover_headings), (r,), e
+            "rover_headings", _given(o.rover_headings, start.rover_headings), (r,), e
         )
         state.poi_positions[:] = _team_array(
-            "poi_positions", pick(o.poi_positions, start.poi_positions), (k, 2), e
+            "poi_positions", _given(o.poi_positions, start.poi_positions), (k, 2), e
         )
-        values = _team_array("poi_values", pick(o.poi_values, start.poi_values), (k,), e)
+        values = _team_array("poi_values", _given(o.poi_values, start.poi_values), (k,), e)
         if np.any(values <= 0):
             raise ValueError("poi_values must be positive")
         state.poi_values[:] = values
@@ -171,6 +178,29 @@ class RoverWorld:
         start_episode(state)
         self.t = 0
         return self._sense_and_score()
+
+    def _draw(self, rngs: Sequence[np.random.Generator]) -> StartState:
+        """The scenario's start states for this reset, under its redraw mode."""
+        scenario, values = self.config.scenario, np.asarray(self.config.poi_values, dtype=float)
+        start = scenario.draw(rngs, self.n_rovers, values)
+        if not isinstance(start, StartState):
+            raise TypeError(f"{type(scenario).__name__}.draw must return a StartState")
+        if scenario.redraw == "episode":
+            return start
+        if scenario.redraw == "never":
+            if self._fixed_start is None:
+                rng = np.random.default_rng(scenario.layout_seed)
+                self._fixed_start = StartState(*(a[0] for a in scenario.draw([rng],
+                                                                             self.n_rovers,
+                                                                             values)))  # fmt: skip
+            shared, first = self.n_teams, self._fixed_start
+        else:  # "generation": team 0's draw for every team but the fresh ones
+            shared = self.n_teams - min(self.fresh_teams, self.n_teams - 1)
+            first = StartState(*(np.asarray(a)[0] for a in start))
+        out = [np.array(a, dtype=np.float64) for a in start]
+        for arr, row in zip(out, first, strict=True):
+            arr[:shared] = row
+        return StartState(*out)
 
     def step(self, actions: np.ndarray) -> np.ndarray:
         """Apply (E, R, 2) actions (clipped to [-1, 1]); returns (E, R, n_obs) float32

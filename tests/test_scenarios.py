@@ -1,0 +1,143 @@
+"""Scenarios: the built-in start states, their draws checked against hand-replayed draws,
+determinism per seed and per redraw mode, and errors for bad values."""
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from physrover import RoverEnv, RoverVectorEnv
+from physrover.config import ConfigError, DomainConfig, RunConfig
+from physrover.domain.world import RoverWorld
+
+
+def _world(scenario, n_teams=4, **fields):
+    return RoverWorld(DomainConfig(scenario=scenario, **fields), n_teams)
+
+
+def _starts(world, seeds):
+    world.reset([np.random.default_rng(s) for s in seeds])
+    return world.rover_positions.copy(), world.rover_headings.copy(), world.poi_positions.copy()
+
+
+def test_ring_random_replays_its_draws():
+    # Per team: 3 uniforms per rover (radius, angle, heading), then 2 per POI (angle, radius).
+    scenario = {"kind": "ring-random", "poi_ring_radius": 10.0, "ring_thickness": 0.4}
+    world = _world(scenario, n_teams=2)
+    _, _, pois = _starts(world, [7, 8])
+    for team, seed in enumerate([7, 8]):
+        rng = np.random.default_rng(seed)
+        rng.random((15, 3))
+        u = rng.random((4, 2))
+        angle, radius = 2 * np.pi * u[:, 0] - np.pi, 6.0 + 4.0 * u[:, 1]
+        expected = np.stack([radius * np.cos(angle), radius * np.sin(angle)], -1)
+        np.testing.assert_allclose(pois[team], expected, rtol=0, atol=1e-14)
+    radii = np.hypot(*pois.reshape(-1, 2).T)
+    assert radii.min() >= 6.0 and radii.max() <= 10.0
+    # Thickness 0: every POI on the ring.
+    _, _, pois = _starts(_world({"kind": "ring-random", "poi_ring_radius": 10.0}), range(4))
+    np.testing.assert_allclose(np.hypot(*pois.reshape(-1, 2).T), 10.0, rtol=1e-14)
+
+
+def test_uniform_keeps_its_square_and_separation():
+    scenario = {"kind": "uniform", "half_size": 6.0, "min_separation": 4.0}
+    _, _, pois = _starts(_world(scenario, n_teams=50), range(50))
+    assert np.abs(pois).max() <= 6.0
+    gaps = np.linalg.norm(pois[:, :, None] - pois[:, None], axis=-1)
+    gaps[:, np.arange(4), np.arange(4)] = np.inf
+    assert gaps.min() >= 4.0
+    with pytest.raises(ConfigError, match="min_separation: 4 POIs cannot be 30.0 apart"):
+        DomainConfig(scenario={"kind": "uniform", "half_size": 6.0, "min_separation": 30.0})
+
+
+def test_explicit_places_what_the_table_says():
+    scenario = {
+        "kind": "explicit",
+        "poi_positions": [[1, 2], [3, 4]],
+        "rover_positions": [[0, 0], [1, 0], [2, 0]],
+        "rover_headings": [0, 1, 2],
+    }
+    world = _world(scenario, n_teams=2, n_rovers=3, n_req=1, poi_values=(1.0, 5.0))
+    positions, headings, pois = _starts(world, [0, 1])
+    np.testing.assert_array_equal(pois, [[[1, 2], [3, 4]]] * 2)
+    np.testing.assert_array_equal(positions, [[[0, 0], [1, 0], [2, 0]]] * 2)
+    np.testing.assert_array_equal(headings, [[0, 1, 2]] * 2)
+    np.testing.assert_array_equal(world.poi_values, [[1, 5]] * 2)
+    with pytest.raises(ConfigError, match=r"poi_positions: need one position per POI value \(4\)"):
+        DomainConfig(scenario={"kind": "explicit", "poi_positions": [[1, 2]]})
+    with pytest.raises(ConfigError, match="rover_positions: need none or one per rover"):
+        DomainConfig(scenario={"kind": "explicit", "rover_positions": [[1, 2]]})
+    text = RunConfig(DomainConfig(scenario=scenario, n_rovers=3, n_req=1,
+                                  poi_values=(1.0, 5.0))).to_toml()  # fmt: skip
+    assert "poi_positions = [[1.0, 2.0], [3.0, 4.0]]" in text
+    assert RunConfig.from_toml(text).domain.scenario.rover_headings == (0.0, 1.0, 2.0)
+
+
+@pytest.mark.parametrize("kind", ["ring", "ring-random", "uniform", "explicit"])
+def test_same_seeds_same_starts_other_seeds_other_starts(kind):
+    a = _starts(_world(kind), [1, 2, 3, 4])
+    b = _starts(_world(kind), [1, 2, 3, 4])
+    c = _starts(_world(kind), [5, 6, 7, 8])
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x, y)
+    assert not np.array_equal(a[0], c[0])  # the rovers are drawn in every scenario
+
+
+def test_redraw_generation_shares_all_but_the_fresh_teams():
+    world = _world({"kind": "ring-random", "redraw": "generation"}, n_teams=6)
+    world.fresh_teams = 2
+    positions, headings, pois = _starts(world, range(6))
+    for arr in (positions, headings, pois):
+        assert all(np.array_equal(arr[0], arr[e]) for e in range(4))
+        assert not np.array_equal(arr[0], arr[4]) and not np.array_equal(arr[4], arr[5])
+    # The shared draw is team 0's own, and the generators advance as under "episode".
+    episode = _world({"kind": "ring-random"}, n_teams=6)
+    rngs_g, rngs_e = ([np.random.default_rng(s) for s in range(6)] for _ in range(2))
+    world.reset(rngs_g)
+    episode.reset(rngs_e)
+    np.testing.assert_array_equal(world.poi_positions[:4], episode.poi_positions[[0] * 4])
+    np.testing.assert_array_equal(world.poi_positions[4:], episode.poi_positions[4:])
+    assert [r.random() for r in rngs_g] == [r.random() for r in rngs_e]
+
+
+def test_redraw_never_is_one_start_for_every_team_seed_and_episode():
+    scenario = {"kind": "uniform", "redraw": "never", "layout_seed": 3}
+    a = _starts(_world(scenario), [0, 1, 2, 3])
+    again = _world(scenario)
+    b = _starts(again, [9, 9, 9, 9])
+    c = _starts(again, [4, 5, 6, 7])
+    for x, y, z in zip(a, b, c, strict=True):
+        np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(y, z)
+        assert all(np.array_equal(x[0], x[e]) for e in range(4))
+    other = _starts(_world({**scenario, "layout_seed": 4}), [0, 1, 2, 3])
+    assert not np.array_equal(a[2], other[2])
+
+
+def test_the_ccea_shares_a_generation_start_and_evaluates_on_fresh_ones():
+    from physrover.learn.ccea import CCEA
+
+    config = RunConfig().with_overrides({"scenario": "ring-random", "redraw": "generation",
+                                         "population": 4, "eval_episodes": 3, "n_rovers": 3,
+                                         "n_req": 1, "steps": 5})  # fmt: skip
+    ccea = CCEA(config)
+    ccea.run_generation()
+    pois = ccea.env.world.poi_positions  # 4 training teams, then 3 evaluation episodes
+    assert all(np.array_equal(pois[0], pois[e]) for e in range(4))
+    assert len({pois[e].tobytes() for e in range(4, 7)} | {pois[0].tobytes()}) == 4
+
+
+def test_scenarios_through_the_env_and_the_command_line(capsys):
+    from physrover.cli import main
+
+    check_env(RoverEnv(scenario="ring-random", redraw="generation"), skip_render_check=True)
+    check_env(RoverEnv(scenario="uniform", min_separation=3.0), skip_render_check=True)
+    venv = RoverVectorEnv(3, scenario="uniform", half_size=8.0)
+    obs, _ = venv.reset(seed=0)
+    assert obs.shape == (3, 15, 8) and np.abs(venv.world.poi_positions).max() <= 8.0
+    assert main(["info", "--set", "scenario=ring-random", "--set", "ring_thickness=0.5"]) == 0
+    out = capsys.readouterr().out
+    assert '[scenario]\nkind = "ring-random"' in out and "ring_thickness = 0.5" in out
+    assert main(["info", "--set", "scenario=ring-random", "--set", "redraw=always"]) == 2
+    assert "redraw: must be one of episode, generation, never" in capsys.readouterr().err
+    with pytest.raises(ConfigError, match="ring_thickness: must be in"):
+        DomainConfig(scenario={"kind": "ring-random", "ring_thickness": 1.5})
