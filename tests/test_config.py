@@ -52,7 +52,7 @@ def test_defaults_are_the_papers():
         15.0,
         1.5,
     )
-    assert (cfg.motion, cfg.sensor.kind, cfg.sensor.dim) == ("ideal", "quadrants", 8)
+    assert (cfg.motion, cfg.sensor.kind, cfg.sensor.dim) == ("ideal", "density", 8)
 
 
 def test_coercion_is_lossless_only():

@@ -197,24 +197,24 @@ def test_five_ccea_generations_with_every_custom_part(method):
 
 def test_only_the_built_in_parts_fuse_into_one_compiled_step():
     from physrover.domain.dynamics import Ideal
-    from physrover.domain.sensors import Quadrants
+    from physrover.domain.sensors import Density
     from physrover.domain.world import RoverWorld
 
     @dataclasses.dataclass(frozen=True)
-    class MyQuadrants(Quadrants):  # a subclass may override observe: it must be called
-        kind: ClassVar[str] = "test-my-quadrants"
+    class MyDensity(Density):  # a subclass may override observe: it must be called
+        kind: ClassVar[str] = "test-my-density"
 
     class MyIdeal(Ideal):
         name: ClassVar[str] = "test-my-ideal"
 
-    assert (Quadrants.fused, Ideal.fused, MyQuadrants.fused, MyIdeal.fused) == (
+    assert (Density.fused, Ideal.fused, MyDensity.fused, MyIdeal.fused) == (
         True,
         True,
         False,
         False,
     )
     assert RoverWorld(DomainConfig(), 1)._fused
-    assert not RoverWorld(DomainConfig(sensor=MyQuadrants()), 1)._fused
+    assert not RoverWorld(DomainConfig(sensor=MyDensity()), 1)._fused
     assert not RoverWorld(DomainConfig(motion="physics"), 1)._fused
 
 

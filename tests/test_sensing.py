@@ -23,7 +23,7 @@ def compiled_observe(rovers, headings, pois, values, d_min):
     state.poi_values[:] = values
     kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
     obs = np.empty((n_teams, n_rovers, 8), dtype=np.float32)
-    kernels.sense(state, d_min, obs)
+    kernels.sense(state, d_min, (0,) * 4, None, obs)
     return obs
 
 
@@ -165,3 +165,84 @@ def test_relations_shapes_and_self_distance():
     )
     assert rel.delta_sq.shape == rel.quadrant.shape == (2, 3, 7)
     assert rel.delta_sq[0, 2, 2] == 1.0  # own distance is bounded to d_min^2
+
+
+def _sector_oracle(rovers, headings, pois, values, d_min, n, radius):
+    """Plain loops from world-frame angles: an object's bearing is its direction minus the
+    rover's heading, wrapped to [-pi, pi); sector floor((b + pi) n / (2 pi))."""
+    n_teams, n_rovers, _ = rovers.shape
+    out = np.zeros((n_teams, n_rovers, 2 * n))
+    for e in range(n_teams):
+        for i in range(n_rovers):
+            others = [(rovers[e, j], 1.0, 0) for j in range(n_rovers) if j != i]
+            others += [(pois[e, k], values[e, k], n) for k in range(pois.shape[1])]
+            for pos, value, offset in others:
+                dx, dy = pos - rovers[e, i]
+                dist = math.hypot(dx, dy)
+                if dist > radius:
+                    continue
+                b = (math.atan2(dy, dx) - headings[e, i] + math.pi) % (2 * math.pi) - math.pi
+                q = int((b + math.pi) * n / (2 * math.pi)) % n
+                out[e, i, offset + q] += value / max(dist, d_min) ** 2
+    return out
+
+
+@pytest.mark.parametrize(("n", "radius"), [(4, np.inf), (6, np.inf), (3, np.inf), (6, 5.0)])
+def test_sectors_and_radius_match_the_plain_loop_oracle(n, radius):
+    rng = np.random.default_rng(n)
+    rovers = rng.uniform(-8, 8, (5, 7, 2))
+    headings = rng.uniform(-np.pi, np.pi, (5, 7))
+    pois = rng.uniform(-8, 8, (5, 3, 2))
+    values = rng.uniform(1, 4, (5, 3))
+    state = WorldState.zeros(5, 7, 3)
+    for name, value in (("rover_positions", rovers), ("rover_headings", headings),
+                        ("poi_positions", pois), ("poi_values", values)):  # fmt: skip
+        getattr(state, name)[:] = value
+    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    obs = np.empty((5, 7, 2 * n), dtype=np.float32)
+    kernels.sense(state, 1.0, (0,) * n, radius**2 if radius < np.inf else None, obs)
+    expected = _sector_oracle(rovers, headings, pois, values, 1.0, n, radius)
+    np.testing.assert_allclose(obs, expected, rtol=1e-6, atol=1e-9)
+    if radius < np.inf:  # the radius took something away
+        full = np.empty_like(obs)
+        kernels.sense(state, 1.0, (0,) * n, None, full)
+        assert (full.sum(-1) > obs.sum(-1) + 1e-6).any()
+
+
+def test_the_radius_excludes_an_object_just_beyond_it():
+    # Rover at the origin facing +x; a POI (value 2) dead ahead at 5, another at 5 + 1e-9.
+    def seen(distance, radius=5.0):
+        state = WorldState.zeros(1, 1, 1)
+        state.poi_positions[:] = [[[distance, 0.0]]]
+        state.poi_values[:] = 2.0
+        kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+        obs = np.empty((1, 1, 12), dtype=np.float32)
+        kernels.sense(state, 1.0, (0,) * 6, radius**2 if radius < np.inf else None, obs)
+        return obs[0, 0]
+
+    # Six sectors of 60 deg from dead behind: dead ahead (bearing 0) starts sector 3.
+    np.testing.assert_allclose(seen(5.0)[6 + 3], 2.0 / 25.0, rtol=1e-7)
+    assert seen(5.0).sum() == pytest.approx(2.0 / 25.0, rel=1e-7)
+    assert not seen(5.0 + 1e-9).any()
+    assert seen(5.0 + 1e-9, radius=np.inf).sum() > 0
+
+
+@pytest.mark.parametrize("n", [4, 6])
+def test_sectors_through_the_env_and_the_ccea(n):
+    from gymnasium.utils.env_checker import check_env
+
+    from physrover import RoverEnv
+    from physrover.config import ConfigError, DomainConfig, RunConfig
+    from physrover.learn.ccea import CCEA
+
+    env = RoverEnv(n_rovers=3, sectors=n, radius=10.0)
+    assert env.observation_space.shape == (3, 2 * n)
+    check_env(env, skip_render_check=True)
+    ccea = CCEA(RunConfig().with_overrides({"sectors": n, "n_rovers": 3, "population": 4,
+                                            "eval_episodes": 1, "steps": 5}))  # fmt: skip
+    ccea.run_generation()
+    assert ccea.layout.n_in == 2 * n
+    with pytest.raises(ConfigError, match="sectors: must be >= 1"):
+        DomainConfig(sensor={"kind": "density", "sectors": 0})
+    with pytest.raises(ConfigError, match="radius: must be > 0"):
+        DomainConfig().replace(radius=-1.0)

@@ -8,7 +8,7 @@ tables (no name is in two of them).
 
 The scenario (start states) and the sensor (observations) are components chosen by name
 (``[scenario] kind = "ring"``, :mod:`physrover.domain.scenarios`; ``[sensor] kind =
-"quadrants"``, :mod:`physrover.domain.sensors`); the motion model by ``[domain] motion``.
+"density"``, :mod:`physrover.domain.sensors`); the motion model by ``[domain] motion``.
 """
 
 from __future__ import annotations
@@ -121,7 +121,7 @@ class DomainConfig(ConfigBase):
     scenario: Any = None
     """[scenario]: start states (default ``"ring"``, the paper's)."""
     sensor: Any = None
-    """[sensor]: what a rover observes (default ``"quadrants"``, Eqs. 15-16)."""
+    """[sensor]: what a rover observes (default ``"density"``, Eqs. 15-16 in quadrants)."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -130,7 +130,7 @@ class DomainConfig(ConfigBase):
         object.__setattr__(
             self, "scenario", component(self.scenario, SCENARIOS, "scenario", "ring")
         )
-        object.__setattr__(self, "sensor", component(self.sensor, SENSORS, "sensor", "quadrants"))
+        object.__setattr__(self, "sensor", component(self.sensor, SENSORS, "sensor", "density"))
         check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
         check(len(self.poi_values) >= 1, "poi_values", "must list at least one POI value")
         for v in self.poi_values:
@@ -223,7 +223,7 @@ class DomainConfig(ConfigBase):
             "scenario": component(changes.pop("scenario", self.scenario), SCENARIOS,
                                   "scenario", "ring"),
             "sensor": component(changes.pop("sensor", self.sensor), SENSORS, "sensor",
-                                "quadrants"),
+                                "density"),
         }  # fmt: skip
         own, fields = {}, {name: {} for name in COMPONENTS}
         for name, value in changes.items():

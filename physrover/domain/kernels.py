@@ -2,7 +2,7 @@
 idealised motion (Section 4.1.2). Each takes the world's state, a
 :class:`~physrover.domain.state.WorldState`, and writes only its own part of it.
 
-- :func:`sense`: the quadrant densities of Eqs. 14-16 (:mod:`physrover.domain.sensors`);
+- :func:`sense`: the sector densities of Eqs. 14-16 (:mod:`physrover.domain.sensors`);
 - :func:`score`: one step's captures (Eqs. 12-13), G so far (Eq. 11) and the
   counterfactual captures of D (Eq. 1), :mod:`physrover.domain.scoring`;
 - :func:`move`: the idealised motion of every rover;
@@ -76,10 +76,30 @@ def _move(cos_h, sin_h, heading, fwd, left):
 
 
 @jit
-def _sense_team(e, state, d_min_sq, obs, acc):
-    """Eqs. 14-16 for the rovers of team ``e``: ``obs[e]`` (R, 8) from ``state``; ``acc`` is
-    (8,) float64 scratch. Each channel adds its terms object by object (rovers by index,
-    then POIs)."""
+def sector(forward: float, left: float, n_sectors: int) -> int:
+    """Sector (0 .. n - 1) of an offset (forward, left) in the rover's frame: n equal
+    sectors of bearing counter-clockwise from dead behind, a boundary bearing in the sector
+    that starts there. Four sectors: :func:`quadrant` (exact on the boundaries); otherwise
+    ``floor((atan2(left, forward) + pi) n / (2 pi))``, a bearing of pi (dead behind) in
+    sector 0."""
+    if n_sectors == 4:
+        return quadrant(forward, left)
+    q = np.int64(math.floor((math.atan2(left, forward) + math.pi) * n_sectors / (2 * math.pi)))
+    return q if q < n_sectors else 0
+
+
+@jit
+def _sense_team(e, state, d_min_sq, sectors, radius_sq, obs, acc):
+    """Eqs. 14-16 for the rovers of team ``e`` in ``len(sectors)`` sectors: ``obs[e]``
+    (R, 2 n_sectors) from ``state``, objects farther than ``sqrt(radius_sq)`` unseen (None:
+    none); ``acc`` is (2 n_sectors,) float64 scratch. Each channel adds its terms object by
+    object (rovers by index, then POIs).
+
+    ``sectors`` is a tuple of n zeros (:func:`physrover.compiled.dims`) and ``radius_sq``
+    may be None: the compiler then knows the sector count and whether there is a radius,
+    and compiles the paper's sensor (4 sectors, no radius) as if it were written alone.
+    """
+    n_sectors = len(sectors)
     positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
     poi_positions, poi_values = state.poi_positions, state.poi_values
     n_rovers = cos_h.shape[1]
@@ -89,22 +109,29 @@ def _sense_team(e, state, d_min_sq, obs, acc):
         s = sin_h[e, i]
         xi = positions[e, i, 0]
         yi = positions[e, i, 1]
-        acc[:] = 0.0  # by quadrant: Eq. 15 in 0-3, Eq. 16 in 4-7
+        acc[:] = 0.0  # by sector: Eq. 15 in 0 .. n-1, Eq. 16 in n .. 2n-1
         for j in range(n_rovers):  # the other rovers, numerator 1
             if j == i:
                 continue
             dx = positions[e, j, 0] - xi
             dy = positions[e, j, 1] - yi
-            dist_sq = max(dx * dx + dy * dy, d_min_sq)  # Eq. 14
+            dist_sq = dx * dx + dy * dy
+            if radius_sq is not None and dist_sq > radius_sq:  # beyond the radius
+                continue
+            dist_sq = max(dist_sq, d_min_sq)  # Eq. 14
             # An indexed add, not one select per quadrant: with real (changing) data the
             # compiler's branches for selects mispredict and cost more than the whole sum.
-            acc[quadrant(c * dx + s * dy, c * dy - s * dx)] += 1.0 / dist_sq
+            acc[sector(c * dx + s * dy, c * dy - s * dx, n_sectors)] += 1.0 / dist_sq
         for k in range(n_pois):  # the POIs, numerator V_k
             dx = poi_positions[e, k, 0] - xi
             dy = poi_positions[e, k, 1] - yi
-            dist_sq = max(dx * dx + dy * dy, d_min_sq)
-            acc[4 + quadrant(c * dx + s * dy, c * dy - s * dx)] += poi_values[e, k] / dist_sq
-        for q in range(8):
+            dist_sq = dx * dx + dy * dy
+            if radius_sq is not None and dist_sq > radius_sq:
+                continue
+            dist_sq = max(dist_sq, d_min_sq)
+            q = n_sectors + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
+            acc[q] += poi_values[e, k] / dist_sq
+        for q in range(2 * n_sectors):
             obs[e, i, q] = acc[q]
 
 
@@ -148,12 +175,14 @@ def _score_team(e, state, d_cap_sq, n_req, t):
 
 
 @jit
-def sense(state, d_min, obs):
-    """The quadrant sensor (Eqs. 14-16) of every rover of every team: ``obs`` (E, R, 8)
+def sense(state, d_min, sectors, radius_sq, obs):
+    """The density sensor (Eqs. 14-16) of every rover of every team in ``len(sectors)``
+    sectors (a tuple of zeros, :func:`physrover.compiled.dims`), blind beyond
+    ``sqrt(radius_sq)`` world units (None: sees everything): ``obs`` (E, R, 2 n_sectors)
     float32, written."""
-    acc = np.empty(8)
+    acc = np.empty(2 * len(sectors))
     for e in range(state.cos_h.shape[0]):
-        _sense_team(e, state, d_min * d_min, obs, acc)
+        _sense_team(e, state, d_min * d_min, sectors, radius_sq, obs, acc)
 
 
 @jit
@@ -219,20 +248,23 @@ def move(commands, state, actions):
 
 
 @jit
-def ideal_step(commands, state, d_min, d_cap, n_req, t, scored, actions, positions, headings, obs):
-    """One idealised world step of every team: :func:`move`, :func:`sense` and (if
-    ``scored``) :func:`score` of step ``t`` composed team by team, with the records:
-    ``actions`` (E, R, 2) float32 the clipped commands, ``positions`` (E, R, 2) and
-    ``headings`` (E, R) copies of the new state, ``obs`` (E, R, 8) float32 the new
-    observations. Returns False, having changed nothing, if a command is NaN.
+def ideal_step(commands, state, sensing, d_cap, n_req, t, scored, actions, positions, headings,
+               obs):  # fmt: skip
+    """One idealised world step of every team: :func:`move`, :func:`sense` (``sensing`` is
+    its ``(d_min, sectors, radius_sq)``) and (if ``scored``) :func:`score` of step ``t``
+    composed team by team, with the records: ``actions`` (E, R, 2) float32 the clipped
+    commands, ``positions`` (E, R, 2) and ``headings`` (E, R) copies of the new state,
+    ``obs`` (E, R, 2 n_sectors) float32 the new observations. Returns False, having changed
+    nothing, if a command is NaN.
     """
     if _any_nan(commands):
         return False
     n_teams, n_rovers = state.cos_h.shape
-    acc = np.empty(8)
+    d_min, sectors, radius_sq = sensing
+    acc = np.empty(2 * len(sectors))
     for e in range(n_teams):
         _move_team(e, commands, state, actions)
-        _sense_team(e, state, d_min * d_min, obs, acc)
+        _sense_team(e, state, d_min * d_min, sectors, radius_sq, obs, acc)
         if scored:
             _score_team(e, state, d_cap * d_cap, n_req, t)
         for i in range(n_rovers):

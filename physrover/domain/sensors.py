@@ -9,17 +9,22 @@ instance passed in code: ``RoverVectorEnv(50, sensor=MySensor())``). The world c
 ``observe`` after every move; the built-in sensor is instead compiled into the idealised
 step (``fused``), so that step stays one compiled call.
 
-The quadrant sensor (``kind = "quadrants"``, the paper's)
---------------------------------------------------------
-Each rover senses an 8-vector (the order of the lab's rover-domain code):
+The density sensor (``kind = "density"``, the paper's)
+-----------------------------------------------------
+With the default four sectors (quadrants) each rover senses an 8-vector (the order of the
+lab's rover-domain code):
 
 - components 0-3: ``s_rover,q = sum_{j in J_q} 1 / delta_ij^2`` over the *other* rovers j of
   the team in quadrant q (Eq. 15);
 - components 4-7: ``s_poi,q = sum_{k in K_q} V_k / delta_ik^2`` over the POIs k in quadrant
   q (Eq. 16);
 
-with ``delta = max(||p_i - p_j||, d_min)`` the bounded distance of Eq. 14. The compiled
-implementation is :func:`physrover.domain.kernels.sense`.
+with ``delta = max(||p_i - p_j||, d_min)`` the bounded distance of Eq. 14. With ``sectors
+= n`` (the lab's ``n_observation_sections``) the same sums run over n equal sectors of
+bearing, 2n observations, sector 0 starting dead behind and counting counter-clockwise;
+with a finite ``radius`` an object farther than it (its true distance, before the d_min
+bound) is left out of every sum. The compiled implementation is
+:func:`physrover.domain.kernels.sense`.
 
 Quadrant convention (the one of the paper's lab's rover-domain code)
 --------------------------------------------------------------------
@@ -40,6 +45,8 @@ right -> 1, dead left -> 3, dead behind -> 0). The bearing is read from the obje
 ``(f, l)`` in the rover's frame (``f`` forward, ``l`` left) as ``atan2(l, f)``, so an object
 at the rover's own position (offset 0) has bearing 0 and lies in quadrant 2. The code uses
 the signs of ``f`` and ``l`` instead of ``atan2``: the same answer, exact on the boundaries.
+Other sector counts use ``floor((atan2(l, f) + pi) n / (2 pi))`` with a bearing of exactly
+pi sent to sector 0: the same rule, up to atan2's rounding on a boundary.
 
 The lab's code computes ``floor((atan2(l, f) + pi) / (2 pi) * 4)`` clipped to 0-3, which
 agrees except for signed zeros: dead behind with ``l = +0`` (what its arithmetic gives for
@@ -50,11 +57,13 @@ heading's cosine and sine are both negative (here always 2).
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import ClassVar
 
 import numpy as np
 
-from physrover.config import Component
+from physrover.compiled import dims
+from physrover.config import Component, check
 from physrover.domain.kernels import Fused, sense
 from physrover.registry import SENSORS
 
@@ -87,17 +96,32 @@ def register_sensor(cls: type[Sensor], *, replace: bool = False) -> type[Sensor]
 
 @register_sensor
 @dataclasses.dataclass(frozen=True)
-class Quadrants(Fused, Sensor, fused=True):
-    """The paper's sensor: rover and POI densities in the four quadrants (Eqs. 14-16)."""
+class Density(Fused, Sensor, fused=True):
+    """The paper's sensor: rover and POI densities by sector of bearing (Eqs. 14-16), four
+    quadrants by default (the lab's n_observation_sections), optionally blind beyond a radius
+    (zerbeln/RoverDomain's observation radius)."""
 
-    kind: ClassVar[str] = "quadrants"
+    kind: ClassVar[str] = "density"
+
+    sectors: int = 4
+    """Sectors of bearing: observations per rover are 2 x sectors (rovers, then POIs)."""
+    radius: float = math.inf
+    """Objects farther than this (world units) are not sensed; inf (default) sees all."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
+        self.check_at_least(1, "sectors")
+        check(self.radius > 0, "radius", f"must be > 0 (inf: no limit), got {self.radius}")
 
     @property
     def dim(self) -> int:
-        return 8
+        return 2 * self.sectors
+
+    def kernel_arguments(self, d_min: float) -> tuple:
+        """``(d_min, sectors, radius_sq)`` as :func:`physrover.domain.kernels.sense` takes
+        them (the sector count as a size tuple, no radius as None)."""
+        radius_sq = self.radius * self.radius if math.isfinite(self.radius) else None
+        return d_min, dims(self.sectors), radius_sq
 
     def observe(self, state, d_min: float, out: np.ndarray) -> None:
-        sense(state, d_min, out)
+        sense(state, *self.kernel_arguments(d_min), out)

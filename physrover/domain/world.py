@@ -137,6 +137,8 @@ class RoverWorld:
         self.heading_history = np.zeros(states)
         # idealised motion and the built-in sensor: one compiled call per step
         self._fused = self.dynamics.fused and self.sensor.fused
+        if self._fused:  # the density sensor's parameters, as the step kernel takes them
+            self._sensing = self.sensor.kernel_arguments(config.d_min)
         self.fresh_teams = 0
         """Under the scenario's redraw = "generation", the last this many teams draw their own
         start states (the CCEA's evaluation episodes); the others share one."""
@@ -230,7 +232,7 @@ class RoverWorld:
         cfg, t = self.config, self.t
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
         ok = ideal_step(
-            actions, self.state, cfg.d_min, cfg.d_cap, self.n_req, t + 1, self._scored(t + 1),
+            actions, self.state, self._sensing, cfg.d_cap, self.n_req, t + 1, self._scored(t + 1),
             self.actions[t],
             self.position_history[t + 1], self.heading_history[t + 1], obs,
         )  # fmt: skip

@@ -38,7 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physrover.learn.kernels import critic_update, critic_values, dims
+from physrover.compiled import dims
+from physrover.learn.kernels import critic_update, critic_values
 
 
 class IntermediateCritics:

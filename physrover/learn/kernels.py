@@ -25,13 +25,6 @@ ADAM_BETA1, ADAM_BETA2, ADAM_EPS = 0.9, 0.999, 1e-8
 """Adam's constants (Kingma and Ba's defaults, as torch.optim.Adam)."""
 
 
-def dims(n: int) -> tuple[int, ...]:
-    """``n`` zeros: the kernels read ``len(dims)`` as a size the compiler knows, so each
-    input size (the sensor's) gets its own compiled version with its input loops unrolled
-    (what a hand-unrolled loop did for the paper's 8 observations and 10 critic inputs)."""
-    return (0,) * n
-
-
 @jit
 def policy_forward(genomes, hidden, obs, out, dims):
     """Actions of every rover of every team (the layout of ``PolicyLayout``).
@@ -43,7 +36,7 @@ def policy_forward(genomes, hidden, obs, out, dims):
         out: (E, R, 2) float32, written with the pre-activations ``relu(obs W1 + b1) W2 + b2``;
             the caller applies ``np.tanh`` (numpy's vectorised tanh is several times faster
             than calling libm's per element here).
-        dims: a tuple of n_in zeros, :func:`dims`: its length, the observation size, is a
+        dims: a tuple of n_in zeros, ``compiled.dims``: its length, the observation size, is a
             compile-time constant (one compiled version per sensor size, whose input loop
             the compiler unrolls).
     """
@@ -86,7 +79,7 @@ def policy_forward(genomes, hidden, obs, out, dims):
 def gather_trajectories(obs, act, where, out, dims):
     """``out[r, p, t] = (obs[t, e, r], act[t, e, r])`` with ``e = where[r, p]``: the (s, a)
     pairs of policy p of rover r, which played in team e (obs (T, E, R, n_in), act
-    (T, E, R, 2), where (R, k), out (R, k, T, n_in + 2)); ``dims``: n_in zeros (:func:`dims`).
+    (T, E, R, 2), where (R, k), out (R, k, T, n_in + 2)); ``dims``: n_in zeros (``compiled.dims``).
     """
     n_rovers, k = where.shape
     steps, n_in, n_act = obs.shape[0], len(dims), 2
@@ -106,7 +99,7 @@ def _critic_forward(W1T, b1, slope, xT, z, value, dims):
     """Sums ``value[n] = sum_h lrelu(z[h, n])`` (N,) of one critic (W1T (H, D), b1 (H,)) on
     pairs xT (D, N); the pre-activations ``z[h, n] = b1[h] + sum_i xT[i, n] W1T[h, i]``
     (added in the order of i) go to the rows of ``z``: (H, N) to keep them, or (1, N) as
-    scratch. ``dims``: D zeros (:func:`dims`).
+    scratch. ``dims``: D zeros (``compiled.dims``).
 
     Register tiling: the inputs are taken 16 at a time (one pass over the pairs per tile),
     their weights held in scalars; D is a compile-time constant, so the compiler drops the
@@ -182,7 +175,7 @@ def _critic_forward(W1T, b1, slope, xT, z, value, dims):
 def critic_values(W1T, b1, b2, slope, xT, out, dims):
     """``C(x) = sum_h lrelu(x W1 + b1)_h + b2`` (Eq. 2) of R critics (W1T (R, H, D), b1
     (R, H), b2 (R,)) on pairs xT (R, D, N), into (R, N) ``out``; ``dims``: D zeros
-    (:func:`dims`)."""
+    (``compiled.dims``)."""
     scratch = np.empty((1, xT.shape[2]), np.float32)
     for r in range(xT.shape[0]):
         value = out[r]
@@ -195,7 +188,7 @@ def critic_values(W1T, b1, b2, slope, xT, out, dims):
 def _weighted_grad(W1T, slope, xT, z, u_weights, dW1T, db1, dims):
     """``sum_n u_n grad C(x_n)`` of one critic for the W1 and b1 blocks, from the pairs xT
     (D, N), their pre-activations z (H, N) and weights (N,), into dW1T (H, D), db1 (H,);
-    ``dims``: D zeros (:func:`dims`). Register tiling as in :func:`_critic_forward`.
+    ``dims``: D zeros (``compiled.dims``). Register tiling as in :func:`_critic_forward`.
 
     Each entry is a sum over the N pairs; this is the one place where the compiler may
     reorder additions (vectorised partial sums), so the sums are reproducible on a machine
@@ -320,7 +313,7 @@ def critic_update(
     The step is plain (``w += lr * direction``, the paper's) or, with ``adam``, Adam's on the
     same gradient; ``moments`` (R, 2, H * (D + 1) + 1) holds Adam's m and v of each critic's
     parameters flattened as ``W1T | b1 | b2``, and ``step`` the steps taken before this call
-    (Adam's t, shared by all critics); ``dims``: D zeros (:func:`dims`). Critics are
+    (Adam's t, shared by all critics); ``dims``: D zeros (``compiled.dims``). Critics are
     independent, so each runs all its mini-batches in turn. Returns the mean of
     ``delta**2`` over all critics and entries (float64).
     """

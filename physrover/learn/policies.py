@@ -45,7 +45,8 @@ class PolicyLayout:
     def prepare(self, genomes: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
         """A function ``obs (E, R, n_in) -> actions (E, R, n_out)`` of fixed (E, R, P)
         genomes, for the steps of an episode (the genomes are laid out once)."""
-        from physrover.learn.kernels import dims, policy_forward
+        from physrover.compiled import dims
+        from physrover.learn.kernels import policy_forward
 
         genomes = np.ascontiguousarray(genomes, dtype=np.float32)
         if genomes.shape[-1] != self.size:
