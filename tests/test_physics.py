@@ -194,3 +194,17 @@ def test_check_env_and_vector_equivalence_under_physics():
         for i, env in enumerate(singles):
             o, r, *_ = env.step(act[i])
             np.testing.assert_allclose(obs[i], o, rtol=1e-6, atol=1e-9)
+
+
+def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone():
+    # Regression: with a static shape in the space, pymunk.batch also reads and writes the
+    # static body, which crashed every step with walls (0.1.0) and would move the walls.
+    env = RoverVectorEnv(2, motion="physics", walls=True, wall_half_size=5.0)
+    env.reset(seed=0)
+    for _ in range(50):
+        env.step(np.tile([1.0, 0.3], (2, 15, 1)))
+    world = env.world
+    # No rover escapes (centres inside the square; crowds pushed against a wall overlap it by
+    # up to ~0.2 units, pymunk's contacts); before the fix they never got a step in.
+    assert 4.5 < np.abs(world.position_history).max() < 5.0
+    assert tuple(world.dynamics.space.static_body.position) == (0.0, 0.0)

@@ -33,7 +33,12 @@ reach full speed, and its speed never exceeds the command (the velocity moves al
 segment towards ``v*``).
 
 Collisions between rovers of a team are switched by ``collisions`` (shape filters, not
-callbacks). Chipmunk detects contacts between discrete positions, so rovers closing at more
+callbacks). The scenario's obstacles (static discs) and the walls collide with every rover
+through pymunk's own contacts (no speculative pass: keep obstacles wider than a rover's
+travel in one physics step, at most sqrt(2) / substeps; a rover driving into a disc at full
+speed overlaps it by up to ~0.14 units for a step at 4 substeps, then rests in contact).
+Chipmunk detects contacts between
+discrete positions, so rovers closing at more
 than a diameter per physics step would pass through each other; before every physics step a
 compiled speculative-contact pass (:func:`physrover.domain.kernels.speculative_contacts`)
 removes the closing speed that would carry a pair into overlap, so contacts hold at any
@@ -167,6 +172,8 @@ class PhysicsMotion(Dynamics):
         space.add(*bodies, *shapes)
         if config.physics.walls:
             space.add(*self._walls(space.static_body))
+        space.add(*self._obstacles(space.static_body))
+        self._static_shapes = bool(space.static_body.shapes)
         self.space = space
         self._buffer = pb.Buffer()
         self._set_buffer = pb.Buffer()
@@ -200,17 +207,38 @@ class PhysicsMotion(Dynamics):
                 walls.append(seg)
         return walls
 
+    def _obstacles(self, static_body: pymunk.Body) -> list[pymunk.Circle]:
+        """The scenario's static discs in every team's cell; rovers collide with them."""
+        obstacle_filter = pymunk.ShapeFilter(categories=_WALL, mask=_ROVER)
+        shapes = []
+        for ox, oy in self.offsets.reshape(-1, 2):
+            for x, y, r in self.config.scenario.obstacles():
+                disc = pymunk.Circle(static_body, r, (ox + x, oy + y))
+                disc.filter = obstacle_filter
+                disc.elasticity = 0.0
+                disc.friction = 0.0
+                shapes.append(disc)
+        return shapes
+
     # -- batch I/O ---------------------------------------------------------------------------
+
+    # pymunk.batch reads and writes every body of the space: the rovers, then the space's
+    # static body once any static shape (walls, obstacles) is attached to it. Reads drop the
+    # static body; writes append its state (at rest at the origin), or set_space_bodies
+    # would read past the buffer into the static body.
 
     def _get(self, fields: pb.BodyFields, width: int) -> np.ndarray:
         self._buffer.clear()
         pb.get_space_bodies(self.space, fields, self._buffer)
-        return np.frombuffer(self._buffer.float_buf(), dtype=np.float64).reshape(
+        n = self.n_teams * self.n_rovers * width
+        return np.frombuffer(self._buffer.float_buf(), dtype=np.float64)[:n].reshape(
             self.n_teams, self.n_rovers, width
         )
 
     def _set(self, fields: pb.BodyFields, values: np.ndarray) -> None:
         data = np.ascontiguousarray(values, dtype=np.float64).ravel()
+        if self._static_shapes:
+            data = np.concatenate([data, np.zeros(data.size // (self.n_teams * self.n_rovers))])
         self._set_buffer.set_float_buf(data)
         pb.set_space_bodies(self.space, fields, self._set_buffer)
 

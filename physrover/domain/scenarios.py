@@ -10,8 +10,9 @@ A scenario is a frozen dataclass whose fields are its parameters (the ``[scenari
   uniform in [(1 - ring_thickness) poi_ring_radius, poi_ring_radius]; rovers as ``ring``;
 - ``uniform``: POIs uniform in the square of half side ``half_size`` at the origin, at least
   ``min_separation`` apart; rovers as ``ring``;
-- ``explicit``: POI positions listed in the table (values are [domain] ``poi_values``), and
-  optionally the rovers' positions and headings (else drawn as ``ring``).
+- ``explicit``: POI positions listed in the table (values are [domain] ``poi_values``),
+  optionally the rovers' positions and headings (else drawn as ``ring``) and static
+  obstacles (discs).
 
 Redraws (``redraw``, every scenario):
 
@@ -107,6 +108,13 @@ class Scenario(Component):
     def check_domain(self, domain) -> None:
         """Raise :class:`~physrover.config.ConfigError` if the scenario cannot serve
         ``domain`` (a :class:`~physrover.config.DomainConfig`); by default it can."""
+
+    def obstacles(self) -> np.ndarray:
+        """(M, 3) static discs ``[x, y, radius]`` in world units, the same in every episode
+        and team (by default none). The physical model makes them static bodies that rovers
+        collide with; the idealised kinematics (the paper's, which has no obstacles) moves
+        through them; sensors find them in ``WorldState.obstacles``."""
+        return np.zeros((0, 3))
 
 
 def register_scenario(cls: type[Scenario], *, replace: bool = False) -> type[Scenario]:
@@ -286,6 +294,8 @@ class Explicit(Scenario):
     """Every rover's heading, radians; empty: drawn uniformly in [-pi, pi)."""
     spawn_radius: float = 1.5
     """The spawn disc's radius when rover_positions is empty, world units."""
+    obstacle_discs: tuple[tuple[float, ...], ...] = ()
+    """[[x, y, radius], ...] static obstacles, world units (physical motion only)."""
 
     def validate(self) -> None:
         self.check_positive("spawn_radius")
@@ -294,6 +304,12 @@ class Explicit(Scenario):
                 check(len(p) == 2 and all(np.isfinite(p)), name,
                       f"every position must be a finite [x, y], got {list(p)}")  # fmt: skip
         check(all(np.isfinite(self.rover_headings)), "rover_headings", "must be finite")
+        for disc in self.obstacle_discs:
+            ok = len(disc) == 3 and all(np.isfinite(disc)) and disc[2] > 0
+            check(ok, "obstacle_discs", f"every obstacle is [x, y, radius > 0], got {list(disc)}")
+
+    def obstacles(self) -> np.ndarray:
+        return np.array(self.obstacle_discs, dtype=np.float64).reshape(-1, 3)
 
     def check_domain(self, domain) -> None:
         check(
@@ -318,7 +334,8 @@ class Explicit(Scenario):
 
     def extent(self) -> float:
         points = [*self.poi_positions, *self.rover_positions]
-        return max([self.spawn_radius, *(float(np.hypot(*p)) for p in points)])
+        reach = [float(np.hypot(x, y) + r) for x, y, r in self.obstacle_discs]
+        return max([self.spawn_radius, *(float(np.hypot(*p)) for p in points), *reach])
 
 
 __all__ = ["Explicit", "REDRAWS", "Ring", "RingRandom", "Scenario", "SpawnDisc", "StartState",

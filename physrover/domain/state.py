@@ -6,7 +6,8 @@ arrays natively) instead of a dozen positional arrays. Each group of arrays has 
 - the motion model writes the rovers (``rover_positions``, ``rover_headings`` and their
   ``cos_h``, ``sin_h``): the idealised step kernel, or the world copying in what the
   physical model computed;
-- the scenario writes the POIs (``poi_positions``, ``poi_values``) at reset;
+- the scenario writes the POIs (``poi_positions``, ``poi_values``) at reset, and the
+  obstacles (``obstacles``) once;
 - scoring (:func:`physrover.domain.kernels.score`, Eqs. 11-13) writes ``poi_counts``,
   ``in_range``, ``captured``, ``captured_without``, ``capture_step`` and ``score``.
 
@@ -35,6 +36,8 @@ class WorldState(NamedTuple):
     """(E, K, 2) float64, world units."""
     poi_values: np.ndarray
     """(E, K) float64, positive."""
+    obstacles: np.ndarray
+    """(E, M, 3) float64: static discs ``[x, y, radius]`` of the scenario, world units."""
     poi_counts: np.ndarray
     """(E, K) int64: rovers within d_cap of each POI at the latest scored step (Eq. 13)."""
     in_range: np.ndarray
@@ -51,7 +54,9 @@ class WorldState(NamedTuple):
     """(E,) float64: G so far (Eq. 11)."""
 
     @classmethod
-    def zeros(cls, n_teams: int, n_rovers: int, n_pois: int, steps: int = 0) -> WorldState:
+    def zeros(
+        cls, n_teams: int, n_rovers: int, n_pois: int, steps: int = 0, n_obstacles: int = 0
+    ) -> WorldState:
         """A state of the given sizes (``steps`` per episode), every array allocated
         (C-contiguous) and zeroed."""
         e, r, k = n_teams, n_rovers, n_pois
@@ -62,6 +67,7 @@ class WorldState(NamedTuple):
             sin_h=np.zeros((e, r)),
             poi_positions=np.zeros((e, k, 2)),
             poi_values=np.zeros((e, k)),
+            obstacles=np.zeros((e, n_obstacles, 3)),
             poi_counts=np.zeros((e, k), dtype=np.int64),
             in_range=np.zeros((steps + 1, e, r, k), dtype=bool),
             captured=np.zeros((e, k), dtype=bool),

@@ -126,7 +126,11 @@ class RoverWorld:
         self.sensor = config.sensor
         self.obs_dim = int(self.sensor.dim)
         self.dynamics = DYNAMICS[config.motion](config, self.n_teams)
-        self.state = WorldState.zeros(self.n_teams, self.n_rovers, self.n_pois, config.steps)
+        obstacles = config.scenario.obstacles()
+        self.state = WorldState.zeros(
+            self.n_teams, self.n_rovers, self.n_pois, config.steps, len(obstacles)
+        )
+        self.state.obstacles[:] = obstacles
         self.n_req = np.array(config.n_req_per_poi, dtype=np.int64)  # (K,) coupling per POI
         self._scores_final_state = config.scored_states == "all"
         shape = (config.steps, self.n_teams, self.n_rovers)
