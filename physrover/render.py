@@ -1,4 +1,4 @@
-"""Off-screen episode rendering with OpenCV (no display, no GL) and checked H.264 MP4 writing.
+"""Off-screen frames of an episode, drawn with OpenCV (no display, no GL).
 
 A frame shows one team:
 
@@ -20,29 +20,28 @@ position given, plus ``margin`` world units. :func:`draw_frame` fits the traject
 :mod:`physrover.playback` plays a whole episode first and draws every frame (and both
 panels of a side-by-side video) with one view that holds the whole episode.
 
-Videos (:class:`VideoWriter`) are H.264 (libx264, yuv420p) MP4 written with PyAV, which
-browsers, GitHub and VS Code play; yuv420p needs even frame sizes, which
-:class:`RenderConfig` requires (no hidden padding: a frame is the video's size).
+Frame sizes are even (:class:`RenderConfig` requires it): :mod:`physrover.video` writes the
+frames as H.264 yuv420p MP4 (no hidden padding: a frame is the video's size). Its
+:class:`VideoWriter` and :class:`VideoError` are importable from here too.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
-from pathlib import Path
 from typing import ClassVar
 
-import av
 import cv2
 import numpy as np
 
 from physrover.config import ConfigBase, DomainConfig, check
+from physrover.video import VideoError, VideoWriter
 
 BACKGROUND = (246, 246, 246)  # BGR
 POI_FREE = (150, 150, 150)
 POI_CAPTURED = (60, 170, 60)
 TEXT = (40, 40, 40)
 OUTLINE = (30, 30, 30)  # rover body outlines
+OBSTACLE = (110, 110, 110)  # the scenario's static discs
 # Rover colours, cycled by index, as RGB: saturated or light hues from blue over purple
 # and red to yellow, never grey or green (the POI colours); tests/test_pictures.py checks it.
 PALETTE_RGB = [
@@ -58,11 +57,6 @@ INSET_ZOOM = 2.0
 """Smallest zoom at which the clump inset is drawn (see ``_draw_clump_inset``)."""
 INSET_GAP = 8
 """Pixels between the inset and the frame's top-right corner."""
-
-VIDEO_CODEC = "libx264"
-VIDEO_OPTIONS = {"crf": "21", "preset": "medium"}
-"""x264 quality and speed (CRF 21: clean drawings; about 0.5 Mbit/s, 70 kB a second, for a
-1284 x 640 side-by-side video)."""
 
 
 def rover_colour(index: int) -> tuple[int, int, int]:
@@ -264,6 +258,9 @@ def draw_frame(
     img = np.empty((render.height, render.width, 3), dtype=np.uint8)
     img[:] = BACKGROUND
     aa = cv2.LINE_AA
+    for x, y, r in domain.scenario.obstacles():  # static discs, under everything else
+        centre = _pt(tf(np.array([[x, y]]))[0])
+        cv2.circle(img, centre, max(1, int(round(tf.scale * r))), OBSTACLE, -1, aa)
     # POIs: capture ring and a disc sized by value; then the rovers: trails and bodies.
     vmax, ring_px = float(np.max(state.poi_values)), max(1, int(tf.scale * domain.d_cap))
     centres = [_pt(p) for p in tf(state.poi_positions)]
@@ -317,118 +314,6 @@ def world_frame(world, team: int, render: RenderConfig) -> np.ndarray:
     """The frame of team ``team`` of a :class:`~physrover.domain.world.RoverWorld` now, in the
     view of its POIs and its trajectory so far."""
     return draw_frame(world_state(world, team), world.config, render)
-
-
-class VideoError(RuntimeError):
-    """The video could not be written completely."""
-
-
-class VideoWriter:
-    """H.264 MP4 writer (PyAV, libx264, yuv420p) that fails loudly instead of leaving an
-    empty, short or undecodable file.
-
-    Frames are (height, width, 3) RGB uint8; width and height must be even (yuv420p halves
-    the chroma resolution). A frame of another shape or dtype raises before it reaches the
-    encoder; an encoding or write failure raises :class:`VideoError` naming the file. On
-    close the file is read back: it must hold an H.264 yuv420p stream with exactly the frames
-    written. Use as a context manager (an exception inside skips the check) or call
-    :meth:`close`. Quality: :data:`VIDEO_OPTIONS`; ``movflags=+faststart`` puts the index
-    first, so browsers start playing before the download ends.
-    """
-
-    def __init__(self, path: str | Path, width: int, height: int, fps: int):
-        self.path = Path(path)
-        self.size = (width, height)
-        self.frames = 0
-        self._container = self._stream = None
-        if width % 2 or height % 2 or width < 2 or height < 2:
-            raise VideoError(
-                f"cannot write {self.path}: H.264 yuv420p needs an even width and height, "
-                f"got {width}x{height}"
-            )
-        if not self.path.parent.is_dir():
-            raise VideoError(f"cannot write {self.path}: no directory {self.path.parent}")
-        try:
-            self.path.open("wb").close()  # PyAV opens the file only at the first packet
-            self._container = av.open(
-                str(self.path), "w", format="mp4", options={"movflags": "+faststart"}
-            )
-            self._stream = self._container.add_stream(VIDEO_CODEC, rate=Fraction(fps))
-            self._stream.width, self._stream.height = width, height
-            self._stream.pix_fmt = "yuv420p"
-            self._stream.options = dict(VIDEO_OPTIONS)
-        except (av.FFmpegError, OSError, ValueError) as exc:
-            self.close(check=False)
-            raise VideoError(f"cannot open {self.path} for writing (H.264): {exc}") from exc
-
-    def write(self, frame: np.ndarray) -> None:
-        """Encode one (height, width, 3) uint8 RGB frame."""
-        if self._container is None:
-            raise VideoError(f"{self.path} is closed")
-        expected = (self.size[1], self.size[0], 3)
-        if frame.shape != expected or frame.dtype != np.uint8:
-            self.close(check=False)
-            raise VideoError(
-                f"frame must be uint8 of shape {expected}, got {frame.dtype} {frame.shape}"
-            )
-        try:
-            video_frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")
-            video_frame.pts = self.frames  # in 1/fps units
-            self._mux(video_frame)
-        except (av.FFmpegError, OSError, ValueError) as exc:
-            self.close(check=False)
-            raise VideoError(f"writing frame {self.frames} of {self.path} failed: {exc}") from exc
-        self.frames += 1
-
-    def _mux(self, frame) -> None:
-        """Encode ``frame`` (None: flush the encoder) and write the packets out."""
-        for packet in self._stream.encode(frame):
-            self._container.mux(packet)
-
-    def close(self, check: bool = True) -> None:
-        """Flush and close the file; with ``check``, read it back (see the class doc).
-
-        ``check=False`` (after a failure) closes quietly and leaves what was written."""
-        if self._container is None:
-            return
-        error = None
-        try:
-            if self._stream is not None:
-                self._mux(None)
-        except (av.FFmpegError, OSError, ValueError) as exc:
-            error = exc
-        container, self._container = self._container, None
-        try:
-            container.close()
-        except (av.FFmpegError, OSError, ValueError) as exc:
-            error = error or exc
-        if not check:
-            return
-        if error is not None:
-            raise VideoError(f"finishing {self.path} failed: {error}") from error
-        self._check()
-
-    def _check(self) -> None:
-        """Read the closed file back: codec, pixel format and frame count."""
-        if self.frames == 0:
-            raise VideoError(f"{self.path}: no frames were written")
-        try:
-            with av.open(str(self.path)) as container:
-                stream = container.streams.video[0]
-                codec, pix_fmt = stream.codec_context.name, stream.codec_context.pix_fmt
-                count = sum(1 for packet in container.demux(stream) if packet.size)
-        except (av.FFmpegError, OSError, IndexError) as exc:
-            raise VideoError(f"cannot read back {self.path}: {exc}") from exc
-        if (codec, pix_fmt) != ("h264", "yuv420p"):
-            raise VideoError(f"{self.path} holds {codec} {pix_fmt}, not h264 yuv420p")
-        if count != self.frames:
-            raise VideoError(f"{self.path} holds {count} frames, {self.frames} were written")
-
-    def __enter__(self) -> VideoWriter:
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        self.close(check=exc_type is None)
 
 
 def label(frame: np.ndarray, text: str) -> np.ndarray:

@@ -8,7 +8,7 @@ import stat
 import numpy as np
 import pytest
 
-from physrover import cli
+from physrover import commands
 from physrover.cli import build_parser, main
 from physrover.config import ConfigError, RunConfig
 from physrover.learn.fitness import SingleEpisode, register_method
@@ -205,7 +205,7 @@ def test_tensorboard_events_hold_the_metrics(tmp_path):
 
 
 def test_demo_prints_a_table_of_both_models():
-    table = cli._episode_table([7.0, 9.0, 6.0, 9.0], (1.0, 2.0, 3.0, 4.0))
+    table = commands._episode_table([7.0, 9.0, 6.0, 9.0], (1.0, 2.0, 3.0, 4.0))
     lines = table.splitlines()
     assert lines[0].split()[:5] == ["episode", "G", "ideal", "G", "physics"]
     assert lines[1].split() == ["1", "7", "9"] and lines[2].split() == ["2", "6", "9"]

@@ -15,13 +15,13 @@ ROOT = Path(physrover.__file__).parent
 LAYERS = [
     {"registry", "compiled", "stats", "threads", "config", "progress"},
     {"domain"},  # the rover domain: state, kernels, physics, world
-    {"render"},  # frames and videos of the domain (the envs' render_mode)
+    {"render", "video"},  # frames and videos of the domain (the envs' render_mode)
     {"envs"},  # gymnasium envs over the world
     {"learn", "marl"},  # learners and MARL interfaces over the envs
     # run directories (the CCEA's and the gradient-based trainers') and what reads them
-    {"runs", "trainer_runs", "evaluate", "plots"},
+    {"runs", "trainer_runs", "evaluate", "curve_data", "plots"},
     {"playback", "sweep", "bench"},
-    {"cli"},
+    {"cli", "commands"},
 ]
 PACKAGE_INIT = "__init__"  # the package's __init__ registers and re-exports: any layer
 

@@ -224,3 +224,17 @@ def test_record_run_side_by_side(tmp_path):
     assert len(frames) == 2 * 5
     divider = frames[0][:, 160 : 160 + DIVIDER_PX].astype(int)
     assert divider.max() <= 80  # a dark bar between the panels
+
+
+def test_obstacles_are_drawn_where_they_are():
+    render = RenderConfig(width=200, height=200)
+    scenario = {"kind": "explicit", "obstacle_discs": [[7.0, 7.0, 2.0]]}
+    env = RoverEnv(n_rovers=2, n_req=1, scenario=scenario, render_mode="rgb_array",
+                   render_config=render)  # fmt: skip
+    env.reset(seed=0)
+    frame = env.render().astype(int)
+    tf = _view(env, render)
+    col, row = np.round(tf([7.0, 7.0])).astype(int)  # the disc's centre
+    assert np.abs(frame[row, col] - (110, 110, 110)).max() <= 2
+    col, row = np.round(tf([7.0, 7.0 + 2.5])).astype(int)  # just outside it: background
+    assert np.abs(frame[row, col] - (246, 246, 246)).max() <= 2

@@ -316,3 +316,25 @@ def test_an_episodes_column_in_the_metrics_is_used_as_is(tmp_path):
     text[2] += ",64"
     (run / "metrics.csv").write_text("\n".join(text) + "\n")
     assert load_runs([run])[0].episodes.tolist() == [32, 64]
+
+
+def test_runs_are_grouped_by_the_fields_of_every_table(tmp_path):
+    # Runs that differ in a [physics] field and in the scenario's kind are grouped by them.
+    from physrover.config import RunConfig
+    from physrover.runs import prepare_run_dir
+
+    dirs = []
+    for name, overrides in (("a", {"collisions": False}), ("b", {"scenario": "ring-random"})):
+        config = RunConfig().with_overrides({"motion": "physics", **overrides})
+        prepare_run_dir(tmp_path / name, config)
+        (tmp_path / name / "metrics.csv").write_text(
+            "generation,eval_G,train_G_mean,fitness_mean,critic_loss,wall_seconds\n"
+            "1,1,0,0,nan,0.1\n"
+        )
+        dirs.append(tmp_path / name)
+    runs = plots.load_runs(dirs)
+    assert runs[0].fields["collisions"] is False and runs[1].fields["scenario"] == "ring-random"
+    assert [r.group for r in runs] == [
+        "max-critic collisions=false scenario=ring",
+        "max-critic collisions=true scenario=ring-random",
+    ]
