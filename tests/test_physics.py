@@ -208,3 +208,18 @@ def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone():
     # up to ~0.2 units, pymunk's contacts); before the fix they never got a step in.
     assert 4.5 < np.abs(world.position_history).max() < 5.0
     assert tuple(world.dynamics.space.static_body.position) == (0.0, 0.0)
+
+
+@pytest.mark.parametrize("motion", ["ideal", "physics"])
+def test_the_state_holds_each_models_velocities(motion):
+    world = RoverWorld(DomainConfig(n_rovers=3, n_req=1, steps=20, motion=motion), 2)
+    world.reset([np.random.default_rng(e) for e in range(2)])
+    assert not world.state.rover_velocities.any()  # at rest after reset
+    for _ in range(20):
+        world.step(np.tile([1.0, 0.0], (2, 3, 1)))
+    v = world.state.rover_velocities
+    if motion == "ideal":  # kinematics: no velocity state
+        assert not v.any()
+    else:  # the bodies' velocity, as pymunk has it: full speed by now
+        np.testing.assert_array_equal(v, world.dynamics.state()[2])
+        np.testing.assert_allclose(np.hypot(*v.T), 1.0, atol=1e-6)

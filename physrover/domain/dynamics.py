@@ -40,9 +40,10 @@ class Dynamics:
 
     def reset(self, state) -> None:
         """Start an episode from the start positions and headings in ``state``; may adjust
-        them (the physical model pushes overlapping rovers apart). Must set ``cos_h`` and
-        ``sin_h``; the default only does that."""
+        them (the physical model pushes overlapping rovers apart). Must set ``cos_h``,
+        ``sin_h`` and ``rover_velocities``; the default sets them (at rest)."""
         heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+        state.rover_velocities[:] = 0.0
 
     def step(self, state, actions: np.ndarray) -> None:
         """Move the rovers of ``state`` by one environment step under ``actions`` (E, R, 2),

@@ -252,13 +252,15 @@ class PhysicsMotion(Dynamics):
     def reset(self, state) -> None:
         """Place the rovers of ``state`` at rest (overlapping spawns pushed apart)."""
         state.rover_positions[:] = self._place(state.rover_positions, state.rover_headings)
+        state.rover_velocities[:] = 0.0
         heading_trig(state.rover_headings, state.cos_h, state.sin_h)
 
     def step(self, state, actions: np.ndarray) -> None:
         """Advance one environment step under the (E, R, 2) clipped commands."""
-        positions, headings = self.advance(state.rover_headings, actions)
+        positions, headings, velocities = self.advance(state.rover_headings, actions)
         state.rover_positions[:] = positions
         state.rover_headings[:] = headings
+        state.rover_velocities[:] = velocities
         heading_trig(state.rover_headings, state.cos_h, state.sin_h)
 
     def _place(self, positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
@@ -282,9 +284,12 @@ class PhysicsMotion(Dynamics):
         self._set(_ALL, start)
         return positions
 
-    def advance(self, headings: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def advance(
+        self, headings: np.ndarray, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Step the space through one environment step from the current ``headings`` under
-        the clipped ``actions`` (E, R, 2); returns the new positions and headings."""
+        the clipped ``actions`` (E, R, 2); returns the new positions, headings and
+        velocities (world units per step)."""
         cfg, dt = self.config, self.dt
         shape = (self.n_teams, self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
@@ -299,8 +304,8 @@ class PhysicsMotion(Dynamics):
                                      self.space.collision_slop, 4)  # fmt: skip
             self._set(_MOTION | _FORCES, out)
             self.space.step(dt)
-        s = self._get(_STATE, 3)
-        return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2])
+        s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
+        return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5]
 
     def _wrapped(self, angles: np.ndarray) -> np.ndarray:
         out = np.empty(angles.shape)

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from physrover.config import DomainConfig
-from physrover.domain.kernels import ideal_step, score
+from physrover.domain.kernels import ideal_step_flat, score
 from physrover.domain.scenarios import StartState
 from physrover.domain.scoring import difference, start_episode
 from physrover.domain.state import WorldState
@@ -235,10 +235,10 @@ class RoverWorld:
             actions = actions.astype(np.float64)
         cfg, t = self.config, self.t
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
-        ok = ideal_step(
-            actions, self.state, self._sensing, cfg.d_cap, self.n_req, t + 1, self._scored(t + 1),
-            self.actions[t],
-            self.position_history[t + 1], self.heading_history[t + 1], obs,
+        ok = ideal_step_flat(
+            actions, *self._sensing, cfg.d_cap, self.n_req, t + 1, self._scored(t + 1),
+            self.actions[t], self.position_history[t + 1], self.heading_history[t + 1], obs,
+            *self.state,
         )  # fmt: skip
         if not ok:
             raise ValueError("actions contain NaN")
