@@ -161,3 +161,18 @@ def test_the_options_through_the_env_the_ccea_and_config_errors():
     world = ccea.env.world
     G, credit = ccea.rollout(np.zeros((5, 4), dtype=np.int64))
     np.testing.assert_array_equal(credit, d_plus_plus(world.state, world.n_req))
+
+
+def test_the_options_on_the_command_line(capsys):
+    from physrover.cli import main
+
+    sets = ["feedback=D++", "n_req=[1, 2, 3, 2]", "scored_states=before-steps", "sectors=6",
+            "radius=9"]  # fmt: skip
+    args = ["info", *(x for s in sets for x in ("--set", s))]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    for line in ('feedback = "D++"', "n_req = [1, 2, 3, 2]", 'scored_states = "before-steps"',
+                 "sectors = 6", "radius = 9.0"):  # fmt: skip
+        assert line in out
+    assert main(["info", "--set", "n_req=[1, 2]"]) == 2
+    assert "n_req: a list needs one coupling per POI (4), got 2" in capsys.readouterr().err
