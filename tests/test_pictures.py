@@ -229,8 +229,8 @@ def test_record_run_side_by_side(tmp_path):
 def test_obstacles_are_drawn_where_they_are():
     render = RenderConfig(width=200, height=200)
     scenario = {"kind": "explicit", "obstacle_discs": [[7.0, 7.0, 2.0]]}
-    env = RoverEnv(n_rovers=2, n_req=1, scenario=scenario, render_mode="rgb_array",
-                   render_config=render)  # fmt: skip
+    env = RoverEnv(n_rovers=2, n_req=1, scenario=scenario, motion="physics",
+                   render_mode="rgb_array", render_config=render)  # fmt: skip
     env.reset(seed=0)
     frame = env.render().astype(int)
     tf = _view(env, render)

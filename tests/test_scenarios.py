@@ -143,28 +143,28 @@ def test_scenarios_through_the_env_and_the_command_line(capsys):
         DomainConfig(scenario={"kind": "ring-random", "ring_thickness": 1.5})
 
 
-def test_obstacles_stop_physical_rovers_and_not_idealised_ones():
+def test_obstacles_stop_physical_rovers_and_are_an_error_under_ideal_motion():
     # One rover at the origin facing +x drives at full speed into a disc of radius 1 at
     # (4, 0) for 12 steps; POIs out of the way.
     scenario = {"kind": "explicit", "poi_positions": [[0.0, 30.0]],
                 "rover_positions": [[0.0, 0.0]], "rover_headings": [0.0],
                 "obstacle_discs": [[4.0, 0.0, 1.0]]}  # fmt: skip
-    final = {}
-    for motion in ("ideal", "physics"):
-        world = _world(scenario, n_teams=3, n_rovers=1, n_req=1, poi_values=(1.0,),
-                       steps=12, motion=motion)  # fmt: skip
-        np.testing.assert_array_equal(world.state.obstacles, [[[4.0, 0.0, 1.0]]] * 3)
-        world.reset([np.random.default_rng(e) for e in range(3)])
-        for _ in range(12):
-            world.step(np.tile([1.0, 0.0], (3, 1, 1)))
-        final[motion] = world.position_history[:, :, 0].copy()  # (T + 1, E, 2)
-    assert final["ideal"][-1, 0, 0] == pytest.approx(12.0)  # through the disc
-    gap = np.hypot(*(final["physics"][..., :] - [4.0, 0.0]).transpose(2, 0, 1))
+    fields = dict(n_rovers=1, n_req=1, poi_values=(1.0,), steps=12)
+    with pytest.raises(ConfigError, match="motion: 'ideal' motion cannot hold the scenario's"):
+        _world(scenario, **fields)
+    world = _world(scenario, n_teams=3, motion="physics", **fields)
+    np.testing.assert_array_equal(world.state.obstacles, [[[4.0, 0.0, 1.0]]] * 3)
+    world.reset([np.random.default_rng(e) for e in range(3)])
+    for _ in range(12):
+        world.step(np.tile([1.0, 0.0], (3, 1, 1)))
+    track = world.position_history[:, :, 0]  # (T + 1, E, 2)
+    gap = np.hypot(*(track - [4.0, 0.0]).transpose(2, 0, 1))
     radius = DomainConfig().physics.rover_radius
     # The centre never enters the disc; the impact at full speed overlaps the rover's body
     # with it for a moment (measured 0.14 units: pymunk's contacts, no speculative pass for
     # obstacles), then the rover rests in contact.
     assert gap.min() > 1.0
     np.testing.assert_allclose(gap[-1], 1.0 + radius, atol=0.01)
+    assert track[-1, :, 0].max() < 4.0  # in front of it
     with pytest.raises(ConfigError, match=r"obstacle_discs: every obstacle is \[x, y, radius"):
         DomainConfig(scenario={"kind": "explicit", "obstacle_discs": [[1.0, 2.0, -1.0]]})

@@ -161,6 +161,13 @@ class DomainConfig(ConfigBase):
         check(self.steps >= 1, "steps", f"must be >= 1, got {self.steps}")
         check(self.motion in DYNAMICS, "motion", DYNAMICS.unknown_message(self.motion))
         self.scenario.check_domain(self)
+        check(
+            getattr(DYNAMICS[self.motion], "obstacles", False)
+            or len(self.scenario.obstacles()) == 0,
+            "motion",
+            f"{self.motion!r} motion cannot hold the scenario's obstacles (the paper's "
+            'kinematics has none); use motion = "physics" or a scenario without obstacles',
+        )
         if physics.walls:
             inner = self.scenario.spawn_extent() + 2 * physics.rover_radius
             check(

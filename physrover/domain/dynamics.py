@@ -33,6 +33,9 @@ class Dynamics:
     """The name it is registered under (``motion = "NAME"``)."""
     fused: ClassVar[bool] = False
     """True only for the idealised model, which the world's step kernel moves itself."""
+    obstacles: ClassVar[bool] = False
+    """Whether the model makes rovers collide with the scenario's static obstacles; a
+    scenario with obstacles under a model without them is a config error."""
 
     def __init__(self, config, n_teams: int):
         self.config = config

@@ -137,6 +137,7 @@ class PhysicsMotion(Dynamics):
     """
 
     name = "physics"
+    obstacles = True
 
     def __init__(self, config: DomainConfig, n_teams: int):
         self.config = config

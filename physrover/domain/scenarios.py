@@ -112,8 +112,8 @@ class Scenario(Component):
     def obstacles(self) -> np.ndarray:
         """(M, 3) static discs ``[x, y, radius]`` in world units, the same in every episode
         and team (by default none). The physical model makes them static bodies that rovers
-        collide with; the idealised kinematics (the paper's, which has no obstacles) moves
-        through them; sensors find them in ``WorldState.obstacles``."""
+        collide with; under the idealised kinematics (the paper's, which has none) they are a
+        config error; sensors find them in ``WorldState.obstacles``."""
         return np.zeros((0, 3))
 
 
