@@ -203,7 +203,7 @@ def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig) 
     """Draw (n, R, 2) world positions as trails ending in outlined bodies with heading ticks
     (later indices on top); bodies at their true size, at least ``ROVER_PX`` pixels."""
     aa = cv2.LINE_AA
-    radius_px = max(ROVER_PX, int(round(tf.scale * domain.physics.rover_radius)))
+    radii = domain.physics.per_rover("rover_radius", positions.shape[1])  # to scale, per rover
     trail = tf(positions)  # (n, R, 2) pixels
     now = trail[-1]
     if len(trail) > 1:
@@ -211,6 +211,7 @@ def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig) 
             pts = np.round(trail[:, i]).astype(np.int32).reshape(-1, 1, 2)
             cv2.polylines(img, [pts], False, rover_colour(i), 1, aa)
     for i in range(now.shape[0]):
+        radius_px = max(ROVER_PX, int(round(tf.scale * radii[i])))
         cv2.circle(img, _pt(now[i]), radius_px, rover_colour(i), -1, aa)
         cv2.circle(img, _pt(now[i]), radius_px, OUTLINE, 1, aa)
         # Heading tick from the body's edge outwards, so the body keeps its colour.

@@ -8,6 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from physrover import DomainConfig, RoverEnv, RoverVectorEnv
+from physrover.config import ConfigError
 from physrover.domain.physics import separate
 from physrover.domain.world import RoverWorld, StartOverrides
 
@@ -223,3 +224,49 @@ def test_the_state_holds_each_models_velocities(motion):
     else:  # the bodies' velocity, as pymunk has it: full speed by now
         np.testing.assert_array_equal(v, world.dynamics.state()[2])
         np.testing.assert_allclose(np.hypot(*v.T), 1.0, atol=1e-6)
+
+
+def test_unequal_masses_share_a_speculative_contact_as_momentum_does():
+    from physrover.domain.physics_kernels import speculative_contacts
+
+    positions = np.array([[[0.0, 0.0], [1.0, 0.0]]])
+    velocities = np.array([[[2.0, 0.0], [-2.0, 0.0]]])
+    mass = np.array([1.0, 3.0])
+    contact = np.full((2, 2), 0.4)
+    speculative_contacts(positions, velocities, contact, mass, 0.25, 0.0, 4)
+    momentum = mass @ velocities[0, :, 0]
+    assert momentum == pytest.approx(1.0 * 2.0 + 3.0 * -2.0, abs=1e-12)
+    # The pair now closes exactly to contact within the physics step: (1 - 0.4) / 0.25.
+    assert velocities[0, 0, 0] - velocities[0, 1, 0] == pytest.approx(2.4, abs=1e-12)
+    # The light rover gave up three quarters of the excess 1.6, the heavy one a quarter.
+    np.testing.assert_allclose(velocities[0, :, 0], [2.0 - 1.2, -2.0 + 0.4], atol=1e-12)
+
+
+def test_a_heterogeneous_team_keeps_each_rovers_body_and_speed():
+    # Rover 0: radius 0.2, free; rover 1: radius 0.6, capped at speed 0.5. They start 3
+    # apart, facing each other, and drive at full command.
+    physics = {"rover_radius": [0.2, 0.6], "rover_mass": [1.0, 2.0], "max_speed": [10.0, 0.5],
+               "max_force": [0.5, 2.0]}  # fmt: skip
+    config = DomainConfig(n_rovers=2, n_req=1, poi_values=(1.0,), steps=3, motion="physics",
+                          physics=physics)  # fmt: skip
+    world = RoverWorld(config, 1)
+    world.reset([np.random.default_rng(0)],
+                StartOverrides([[0.0, 0.0], [30.0, 0.0]], [0.0, math.pi]))  # fmt: skip
+    for _ in range(3):
+        world.step(np.array([[[1.0, 0.0], [1.0, 0.0]]]))
+    speed = np.hypot(*world.state.rover_velocities[0].T)
+    assert speed[1] == pytest.approx(0.5, abs=1e-9)  # its cap (max_force 2, mass 2: reached)
+    assert speed[0] > 0.9  # rover 0 keeps accelerating towards 1
+    # Pushed together, they rest at the sum of their radii.
+    world = RoverWorld(config.replace(steps=40), 1)
+    world.reset([np.random.default_rng(0)],
+                StartOverrides([[0.0, 0.0], [3.0, 0.0]], [0.0, math.pi]))  # fmt: skip
+    gaps = []
+    for _ in range(40):
+        world.step(np.array([[[1.0, 0.0], [1.0, 0.0]]]))
+        gaps.append(np.hypot(*(world.rover_positions[0, 1] - world.rover_positions[0, 0])))
+    assert min(gaps) > 0.8 * 0.8 and gaps[-1] == pytest.approx(0.8, abs=0.02)
+    with pytest.raises(ConfigError, match=r"rover_mass: a list needs one value per rover \(3\)"):
+        DomainConfig(n_rovers=3, physics={"rover_mass": [1.0, 2.0]})
+    with pytest.raises(ConfigError, match="max_speed: must be > 0"):
+        DomainConfig(physics={"max_speed": 0.0})

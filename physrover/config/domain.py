@@ -18,6 +18,8 @@ import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
+import numpy as np
+
 from physrover.config.base import (
     Component,
     ConfigBase,
@@ -32,27 +34,35 @@ from physrover.config.base import (
 )
 from physrover.registry import DYNAMICS, SCENARIOS, SENSORS
 
+PER_ROVER = ("rover_radius", "rover_mass", "max_force", "max_torque", "max_speed")
+"""The [physics] fields that take one number for every rover or a list of one per rover."""
+
 
 @dataclasses.dataclass(frozen=True)
 class PhysicsConfig(ConfigBase):
     """The physical motion model (``motion = "physics"``, :mod:`physrover.domain.physics`).
 
-    Time unit: one environment step; lengths in world units; masses in mass units.
+    Time unit: one environment step; lengths in world units; masses in mass units. The
+    fields of :data:`PER_ROVER` take one number (every rover) or a list of one per rover (a
+    heterogeneous team; :meth:`per_rover`).
     """
 
     section: ClassVar[str] = "physics"
 
     collisions: bool = True
     """Rovers of a team collide with each other."""
-    rover_radius: float = 0.2
+    rover_radius: Any = 0.2
     """Radius of a rover's circular body, world units."""
-    rover_mass: float = 1.0
+    rover_mass: Any = 1.0
     """Mass of a rover, mass units; moment of inertia is that of a disc."""
-    max_force: float = 0.5
+    max_force: Any = 0.5
     """Largest drive force, mass x world units / step^2: from rest to speed 1 takes
     rover_mass / max_force steps."""
-    max_torque: float = 0.05
+    max_torque: Any = 0.05
     """Largest steering torque, mass x world units^2 / step^2."""
+    max_speed: Any = math.inf
+    """Largest commanded speed, world units per step (the command's own limit is sqrt(2));
+    the velocity setpoint is scaled down to it."""
     substeps: int = 4
     """Physics steps per environment step."""
     solver_iterations: int = 10
@@ -64,9 +74,31 @@ class PhysicsConfig(ConfigBase):
 
     def __post_init__(self) -> None:
         self._coerce_fields()
-        self.check_positive("rover_radius", "rover_mass", "max_force", "max_torque")
+        for name in PER_ROVER:
+            value = getattr(self, name)
+            if isinstance(value, (list, tuple)):
+                value = tuple(coerce(name, float, v) for v in value)
+                check(len(value) >= 1, name, "a list needs one value per rover")
+            else:
+                value = coerce(name, float, value)
+            object.__setattr__(self, name, value)
+            for v in value if isinstance(value, tuple) else (value,):
+                ok = v > 0 and (math.isfinite(v) or name == "max_speed")
+                check(ok, name, f"must be > 0, got {v}")
         self.check_positive("wall_half_size")
         self.check_at_least(1, "substeps", "solver_iterations")
+
+    def per_rover(self, name: str, n_rovers: int) -> np.ndarray:
+        """(R,) float64: field ``name`` of :data:`PER_ROVER` for each rover."""
+        value = getattr(self, name)
+        return np.array(value if isinstance(value, tuple) else (value,) * n_rovers, dtype=float)
+
+    def check_rovers(self, n_rovers: int) -> None:
+        """ConfigError unless every per-rover list has ``n_rovers`` values."""
+        for name in PER_ROVER:
+            value = getattr(self, name)
+            n = len(value) if isinstance(value, tuple) else n_rovers
+            check(n == n_rovers, name, f"a list needs one value per rover ({n_rovers}), got {n}")
 
 
 def _physics(value: Any) -> PhysicsConfig:
@@ -168,8 +200,10 @@ class DomainConfig(ConfigBase):
             f"{self.motion!r} motion cannot hold the scenario's obstacles (the paper's "
             'kinematics has none); use motion = "physics" or a scenario without obstacles',
         )
+        physics.check_rovers(self.n_rovers)
         if physics.walls:
-            inner = self.scenario.spawn_extent() + 2 * physics.rover_radius
+            radius = float(physics.per_rover("rover_radius", self.n_rovers).max())
+            inner = self.scenario.spawn_extent() + 2 * radius
             check(
                 physics.wall_half_size > inner,
                 "wall_half_size",

@@ -1,10 +1,12 @@
 """Physical rover motion: pymunk bodies with mass, finite force and torque, optional collisions.
 
 Every rover is a dynamic pymunk circle (radius ``rover_radius``, mass ``rover_mass``, the
-moment of inertia of a disc). All E teams live in **one** ``pymunk.Space``, each team in its
-own cell of a grid whose spacing exceeds the distance rovers can travel in an episode, so
-teams never touch; state moves in and out of the space with ``pymunk.batch`` as arrays,
-never with a Python loop over rovers or teams.
+moment of inertia of a disc); these, ``max_force``, ``max_torque`` and ``max_speed`` may
+differ from rover to rover (a list per rover in [physics]: a heterogeneous team). All E
+teams live in **one** ``pymunk.Space``, each team in its own cell of a grid whose spacing
+exceeds the distance rovers can travel in an episode, so teams never touch; state moves in
+and out of the space with ``pymunk.batch`` as arrays, never with a Python loop over rovers
+or teams.
 
 Units: lengths in world units, time in environment steps (one step = 1 time unit, split
 into ``substeps`` physics steps of ``dt = 1 / substeps``), forces in mass x units / step^2.
@@ -14,8 +16,9 @@ The controller (the convention of this testbed, to compare against the paper's k
 The action ``(a_x, a_y)`` is an **orientation-relative velocity command**: at the start of
 the step it is rotated by the rover's heading into a world-frame velocity setpoint
 ``v* = R(heading) a`` (world units per step, so a command held for a step covers at most the
-idealised rover's displacement), and the heading setpoint is the direction of ``v*``
-(unchanged for a zero command), as in the idealised model. Both setpoints are held for the
+idealised rover's displacement; scaled down to ``max_speed`` if longer), and the heading
+setpoint is the direction of ``v*`` (unchanged for a zero command), as in the idealised
+model. Both setpoints are held for the
 step. In every physics step:
 
 - the drive force is ``F = m (v* - v) / dt`` with its norm clipped to ``max_force``;
@@ -144,27 +147,35 @@ class PhysicsMotion(Dynamics):
         self.n_teams, self.n_rovers = n_teams, config.n_rovers
         n_bodies = n_teams * config.n_rovers
         self.dt = 1.0 / config.physics.substeps
-        self.mass = config.physics.rover_mass
-        self.moment = pymunk.moment_for_circle(
-            config.physics.rover_mass, 0.0, config.physics.rover_radius
-        )
-        self.max_dv = config.physics.max_force * self.dt / self.mass  # per physics step
-        self.max_dw = config.physics.max_torque * self.dt / self.moment
-        self.alpha_max = config.physics.max_torque / self.moment
+        # Per rover (R,): a heterogeneous team's bodies and limits (a scalar means all).
+        p, n = config.physics, config.n_rovers
+        self.radius = p.per_rover("rover_radius", n)
+        self.mass = p.per_rover("rover_mass", n)
+        self.moment = np.array([pymunk.moment_for_circle(m, 0.0, r)
+                                for m, r in zip(self.mass, self.radius, strict=True)])  # fmt: skip
+        self.max_dv = p.per_rover("max_force", n) * self.dt / self.mass  # per physics step
+        self.max_dw = p.per_rover("max_torque", n) * self.dt / self.moment
+        self.alpha_max = p.per_rover("max_torque", n) / self.moment
+        max_speed = p.per_rover("max_speed", n)
+        self.max_speed = max_speed if np.isfinite(max_speed).any() else None
+        self.contact = self.radius[:, None] + self.radius[None, :]  # (R, R) contact distances
+        largest = float(self.radius.max())
 
         self.offsets = self._team_offsets()  # (E, 1, 2) world origin of each team's cell
         space = pymunk.Space()
         space.iterations = config.physics.solver_iterations
-        space.collision_slop = 0.01 * config.physics.rover_radius
+        space.collision_slop = 0.01 * float(self.radius.min())
         # Rebuilt from positions every step: pair order independent of history (see above).
-        space.use_spatial_hash(4.0 * config.physics.rover_radius, 4 * n_bodies + 1)
+        space.use_spatial_hash(4.0 * largest, 4 * n_bodies + 1)
         mask = (_ROVER if config.physics.collisions else 0) | _WALL
         rover_filter = pymunk.ShapeFilter(categories=_ROVER, mask=mask)
         bodies, shapes = [], []
-        for origin in self.offsets.reshape(-1, 2).repeat(config.n_rovers, axis=0):
-            body = pymunk.Body(config.physics.rover_mass, self.moment)
+        origins = self.offsets.reshape(-1, 2).repeat(config.n_rovers, axis=0)
+        for k, origin in enumerate(origins):
+            i = k % n  # the rover's index in its team
+            body = pymunk.Body(float(self.mass[i]), float(self.moment[i]))
             body.position = tuple(origin)
-            shape = pymunk.Circle(body, config.physics.rover_radius)
+            shape = pymunk.Circle(body, float(self.radius[i]))
             shape.filter = rover_filter
             shape.elasticity = 0.0
             shape.friction = 0.0
@@ -187,7 +198,7 @@ class PhysicsMotion(Dynamics):
             reach = cfg.physics.wall_half_size
         else:  # the farthest a rover can get: commanded speed <= sqrt(2) per step, margin 2x
             reach = cfg.scenario.extent() + 2.0 * math.sqrt(2) * cfg.steps
-        spacing = 2.0 * reach + 4.0 * cfg.physics.rover_radius + 1.0
+        spacing = 2.0 * reach + 4.0 * float(self.radius.max()) + 1.0
         cols = math.ceil(math.sqrt(self.n_teams))
         index = np.arange(self.n_teams)
         grid = np.stack([index % cols, index // cols], axis=-1).astype(np.float64)
@@ -269,12 +280,11 @@ class PhysicsMotion(Dynamics):
         collisions are on), facing ``headings``; returns the positions used."""
         cfg = self.config
         if cfg.physics.collisions:
-            positions = separate(
-                positions, 2.0 * cfg.physics.rover_radius, self.space.collision_slop
-            )
+            contact = self.contact if np.ptp(self.radius) > 0 else 2.0 * float(self.radius[0])
+            positions = separate(positions, contact, self.space.collision_slop)
         # Drop every cached contact: park the rovers apart and let the contacts expire.
         park = np.zeros((self.n_teams, self.n_rovers, 6))
-        park[..., 0] = 4.0 * cfg.physics.rover_radius * np.arange(self.n_rovers)
+        park[..., 0] = 4.0 * float(self.radius.max()) * np.arange(self.n_rovers)
         park[..., :2] += self.offsets
         self._set(_ALL, park)
         for _ in range(self.space.collision_persistence + 1):
@@ -294,14 +304,14 @@ class PhysicsMotion(Dynamics):
         cfg, dt = self.config, self.dt
         shape = (self.n_teams, self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
-        setpoints(actions, headings, target_v, target_heading)
+        setpoints(actions, headings, self.max_speed, target_v, target_heading)
         out = np.empty((*shape, 6))
         for substep in range(cfg.physics.substeps):
             s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
             control(s, target_v, target_heading, substep == 0, dt, self.max_dv, self.max_dw,
                     self.alpha_max, self.mass, self.moment, out)  # fmt: skip
             if cfg.physics.collisions:  # no pair may end this physics step passed into another
-                speculative_contacts(s[..., 0:2], out[..., 0:2], cfg.physics.rover_radius, dt,
+                speculative_contacts(s[..., 0:2], out[..., 0:2], self.contact, self.mass, dt,
                                      self.space.collision_slop, 4)  # fmt: skip
             self._set(_MOTION | _FORCES, out)
             self.space.step(dt)

@@ -29,16 +29,22 @@ def wrap_angles(angles, out):
 
 
 @jit
-def setpoints(actions, headings, target_v, target_heading):
+def setpoints(actions, headings, max_speed, target_v, target_heading):
     """The step's setpoints from (E, R, 2) clipped commands and (E, R) headings: the world
-    velocity (E, R, 2), the idealised model's move (world units per step), and the heading
-    (E, R), its direction (the current heading for a zero command); the same arithmetic as
-    the idealised step (``kernels._move``)."""
+    velocity (E, R, 2), the idealised model's move (world units per step) scaled down to
+    each rover's ``max_speed`` (R,; None: no limit) if longer, and the heading (E, R), its
+    direction (the
+    current heading for a zero command); the same arithmetic as the idealised step
+    (``kernels._move``)."""
     for e in range(headings.shape[0]):
         for i in range(headings.shape[1]):
             h = headings[e, i]
             mx, my, new_heading = _move(math.cos(h), math.sin(h), h, actions[e, i, 0],
                                         actions[e, i, 1])  # fmt: skip
+            if max_speed is not None:  # compiled out without a speed limit
+                speed = math.hypot(mx, my)
+                if speed > max_speed[i]:
+                    mx, my = mx * (max_speed[i] / speed), my * (max_speed[i] / speed)
             target_v[e, i, 0] = mx
             target_v[e, i, 1] = my
             target_heading[e, i] = new_heading
@@ -54,6 +60,8 @@ def control(
     Args:
         state: (E, R, 6) x, y, angle, vx, vy, w of the bodies now.
         target_v: (E, R, 2), target_heading: (E, R): the step's setpoints.
+        max_dv, max_dw, alpha_max, mass, moment: (R,) each rover's limits per physics step
+            and body (:class:`physrover.domain.physics.PhysicsMotion`).
         first: whether this is the step's first physics step: the drive acts as an impulse
             (written into the velocity, it moves the body within this physics step);
             afterwards as a force and torque (which Chipmunk applies after moving the body,
@@ -64,53 +72,59 @@ def control(
         for i in range(state.shape[1]):
             vx, vy, w = state[e, i, 3], state[e, i, 4], state[e, i, 5]
             dvx, dvy = target_v[e, i, 0] - vx, target_v[e, i, 1] - vy
-            scale = min(1.0, max_dv / max(math.hypot(dvx, dvy), 1e-300))
+            scale = min(1.0, max_dv[i] / max(math.hypot(dvx, dvy), 1e-300))
             dvx, dvy = dvx * scale, dvy * scale
             error = wrap(target_heading[e, i] - state[e, i, 2])
             sign = (error > 0.0) - (error < 0.0)
             magnitude = abs(error)
-            target_w = sign * min(magnitude / dt, math.sqrt(2.0 * alpha_max * magnitude))
-            dw = min(max(target_w - w, -max_dw), max_dw)
+            target_w = sign * min(magnitude / dt, math.sqrt(2.0 * alpha_max[i] * magnitude))
+            dw = min(max(target_w - w, -max_dw[i]), max_dw[i])
             if first:
                 out[e, i, 0], out[e, i, 1], out[e, i, 2] = vx + dvx, vy + dvy, w + dw
                 out[e, i, 3], out[e, i, 4], out[e, i, 5] = 0.0, 0.0, 0.0
             else:
                 out[e, i, 0], out[e, i, 1], out[e, i, 2] = vx, vy, w
-                out[e, i, 3] = dvx * (mass / dt)
-                out[e, i, 4] = dvy * (mass / dt)
-                out[e, i, 5] = dw * (moment / dt)
+                out[e, i, 3] = dvx * (mass[i] / dt)
+                out[e, i, 4] = dvy * (mass[i] / dt)
+                out[e, i, 5] = dw * (moment[i] / dt)
 
 
 @jit
-def speculative_contacts(positions, velocities, radius, dt, allowance, iterations):
+def speculative_contacts(positions, velocities, contact, mass, dt, allowance, iterations):
     """Stop rovers of a team from passing into each other within one physics step, in place.
 
     Chipmunk detects contacts between discrete positions: two rovers closing at more than a
     diameter per physics step can pass straight through each other, and slower impacts end a
     step deeply overlapped. Before each physics step, for every pair (i, j) of a team with
-    centre distance d, normal n = (p_j - p_i) / d and closing speed u = (v_i - v_j) . n
-    (world units per step), the gap left after the step is ``d - 2 r - u dt``. Where that is
-    below ``-allowance``, the excess closing speed ``u - (d - 2 r + allowance) / dt`` is
-    removed along n, half from each rover (equal masses): an inelastic speculative contact.
+    centre distance d, normal n = (p_j - p_i) / d, closing speed u = (v_i - v_j) . n (world
+    units per step) and contact distance c = r_i + r_j, the gap left after the step is
+    ``d - c - u dt``. Where that is below ``-allowance``, the excess closing speed
+    ``u - (d - c + allowance) / dt`` is removed along n, shared as momentum conservation
+    shares it (rover i takes m_j / (m_i + m_j) of it: half each for equal masses): an
+    inelastic speculative contact.
     Pairs are visited in index order, ``iterations`` sweeps (for crowds, where one
     correction changes another pair's speed). Coincident centres are left to Chipmunk.
 
     Args:
         positions: (E, R, 2) centres at the start of the physics step.
         velocities: (E, R, 2) the velocities the step will move them with, updated.
-        radius: rover radius; dt: the physics step, in environment steps;
+        contact: (R, R) contact distances r_i + r_j; mass: (R,) the rovers' masses;
+        dt: the physics step, in environment steps;
         allowance: the overlap a step may end with (Chipmunk's collision slop, so that
             Chipmunk still sees the contact and keeps it).
     """
     n_teams, n_rovers = positions.shape[0], positions.shape[1]
-    contact = 2.0 * radius
+    widest = 0.0
+    for i in range(n_rovers):
+        for j in range(n_rovers):
+            widest = max(widest, contact[i, j])
     for e in range(n_teams):
         # Pairs farther apart than this cannot meet within the step: skipped before the sqrt.
         v_max_sq = 0.0
         for i in range(n_rovers):
             v_sq = velocities[e, i, 0] ** 2 + velocities[e, i, 1] ** 2
             v_max_sq = max(v_max_sq, v_sq)
-        reach = contact + 2.0 * math.sqrt(v_max_sq) * dt
+        reach = widest + 2.0 * math.sqrt(v_max_sq) * dt
         reach_sq = reach * reach
         for _ in range(iterations):
             changed = False
@@ -126,13 +140,15 @@ def speculative_contacts(positions, velocities, radius, dt, allowance, iteration
                     u = (velocities[e, i, 0] - velocities[e, j, 0]) * nx + (
                         velocities[e, i, 1] - velocities[e, j, 1]
                     ) * ny
-                    limit = (d - contact + allowance) / dt
+                    limit = (d - contact[i, j] + allowance) / dt
                     if u > limit:
-                        half = 0.5 * (u - limit)
-                        velocities[e, i, 0] -= half * nx
-                        velocities[e, i, 1] -= half * ny
-                        velocities[e, j, 0] += half * nx
-                        velocities[e, j, 1] += half * ny
+                        excess = u - limit
+                        share_i = excess * (mass[j] / (mass[i] + mass[j]))
+                        share_j = excess * (mass[i] / (mass[i] + mass[j]))
+                        velocities[e, i, 0] -= share_i * nx
+                        velocities[e, i, 1] -= share_i * ny
+                        velocities[e, j, 0] += share_j * nx
+                        velocities[e, j, 1] += share_j * ny
                         changed = True
             if not changed:
                 break
