@@ -186,6 +186,7 @@ def main() -> None:
                     "sweep": name,
                     "run": run.path.name,
                     "method": run.fields["method"],
+                    "feedback": run.fields["feedback"],
                     "n_req": run.fields["n_req"],
                     "n_rovers": run.fields["n_rovers"],
                     "motion": motion_label(run),
@@ -274,6 +275,47 @@ def main() -> None:
             key=lambda r: f"{r.fields['method']} | {r.fields['n_req']} | {motion_label(r)}",
         )
 
+    # Issue 13: D++ as the feedback (experiment 1) and random POI layouts (experiment 2).
+    fig = root / "dpp"
+    if fig.exists():
+        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]
+        runs = [r for r in runs if _finished(r.path)]
+        for run in runs:
+            run.group = f"{run.fields['method']} on {run.fields['feedback']}"
+        for n_req in sorted({r.fields["n_req"] for r in runs}):
+            subset = [r for r in runs if r.fields["n_req"] == n_req]
+            plots.plot_curves(
+                plots.curve_table(subset, smooth=20),
+                OUT / f"dpp_curves_nreq{n_req}.png",
+                f"D and the max critic on D or D++, n_req = {n_req} (20-generation mean)",
+            )
+        plots.plot_final(
+            plots.final_table(runs, "n_req", last=args.last),
+            OUT / "dpp_final_vs_nreq.png",
+            "n_req",
+            f"D++ vs D as the feedback: final score (last {args.last} generations)",
+        )
+        summarise("dpp", runs, ("method", "feedback", "n_req"))
+    fig = root / "ring-random"
+    if fig.exists():
+        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]
+        runs = [r for r in runs if _finished(r.path)]
+        regroup(runs, ())
+        for n_req in sorted({r.fields["n_req"] for r in runs}):
+            subset = [r for r in runs if r.fields["n_req"] == n_req]
+            plots.plot_curves(
+                plots.curve_table(subset, smooth=20),
+                OUT / f"ring-random_curves_nreq{n_req}.png",
+                f"random POI angles (one layout per generation), n_req = {n_req}",
+            )
+        plots.plot_final(
+            plots.final_table(runs, "n_req", last=args.last),
+            OUT / "ring-random_final_vs_nreq.png",
+            "n_req",
+            f"random POI layouts: final score (last {args.last} generations)",
+        )
+        summarise("ring-random", runs, ("method", "n_req"))
+
     if (root / "ablation").exists():
         ablation_table(root / "ablation", args.last)
     if (root / "marl").exists():
@@ -287,11 +329,13 @@ def main() -> None:
     if (OUT / "runs.csv").exists():
         with open(OUT / "runs.csv", newline="") as f:
             kept_rows = [row for row in csv.DictReader(f) if row["sweep"] not in cell_sections]
+        for row in kept_rows:  # written before runs.csv had the feedback column
+            row.setdefault("feedback", "D")
     if (OUT / "cells.md").exists():
         for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
             name, body = section.split("\n", 1)
             cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
-    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics"]
+    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics", "dpp", "ring-random"]
     rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
     with open(OUT / "runs.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))

@@ -49,3 +49,10 @@ def test_old_run_resumes_as_a_fresh_run_of_the_new_release(tmp_path):
     # The generations the old release ran are the new release's too.
     assert _rows(old)[:2] == _rows(OLD_RUN)
     np.testing.assert_array_equal(load_champions(old)[1], load_champions(fresh)[1])
+
+
+def test_the_sensor_once_named_quadrants_still_loads():
+    text = RunConfig().to_toml().replace('kind = "density"', 'kind = "quadrants"')
+    assert 'kind = "quadrants"' in text
+    config = RunConfig.from_toml(text)
+    assert config == RunConfig() and config.domain.sensor.kind == "density"

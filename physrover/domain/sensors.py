@@ -125,3 +125,8 @@ class Density(Fused, Sensor, fused=True):
 
     def observe(self, state, d_min: float, out: np.ndarray) -> None:
         sense(state, *self.kernel_arguments(d_min), out)
+
+
+# Run directories written while this sensor was named "quadrants" (before sector counts)
+# still load: the name is an alias of the density sensor with its default four sectors.
+SENSORS.register("quadrants", Density)
