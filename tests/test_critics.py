@@ -158,3 +158,26 @@ def test_a_zero_learning_rate_freezes_the_critic():
         assert np.isfinite(fc.update(rng))
         for a, b in zip(before, fc.critics.params(), strict=True):
             np.testing.assert_array_equal(a, b)
+
+
+def test_step_input_appends_the_step_to_every_pair():
+    import dataclasses as dc
+
+    from physrover.learn.critics import CriticSettings, FitnessCritic
+
+    settings = CriticSettings("max", "inexact", 4, 0.01, 1e-3, "sgd", 100, 5, 2)
+    rng = np.random.default_rng(0)
+    plain = FitnessCritic(2, 3, 10, settings, rng)
+    timed = FitnessCritic(2, 3, 10, dc.replace(settings, step_input=True), rng)
+    assert (plain.pair_dim, timed.pair_dim) == (10, 11)
+    trajectories = rng.uniform(-1, 1, (2, 5, 3, 10)).astype(np.float32)  # (R, k, T, D)
+    x = timed.inputs(trajectories)
+    assert x.shape == (2, 5, 3, 11) and x.dtype == np.float32
+    np.testing.assert_array_equal(x[..., :10], trajectories)
+    np.testing.assert_array_equal(x[0, 0, :, 10], [0.0, 0.5, 1.0])  # t / (T - 1)
+    assert plain.inputs(trajectories) is trajectories
+    # The extra input reaches the critic: its fitness is the max over steps of C(s, a, t).
+    values = timed.critics(x.reshape(2, 15, 11)).reshape(2, 5, 3)
+    np.testing.assert_array_equal(timed.fitness(trajectories), values.max(-1))
+    timed.store(trajectories, np.ones((2, 5)))
+    assert timed.buffer.size == 15 and timed.update(rng) >= 0.0

@@ -79,12 +79,14 @@ def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
         np.testing.assert_array_equal(ccea.fitness[r, teams[:, r]], D[:, r])
 
 
-@pytest.mark.parametrize("method", ["max-critic", "mean-critic", "hall-of-fame"])
+@pytest.mark.parametrize("method", ["max-critic", "mean-critic", "hall-of-fame", "step-input"])
 def test_resume_is_bit_identical(tmp_path, method):
+    step_input = method == "step-input"  # the max critic that also sees the step
     config = RunConfig().with_overrides(
         {
             **EASY,
-            "method": method,
+            "method": "max-critic" if step_input else method,
+            "critic_step_input": step_input,
             "checkpoint_every": 3,
             "replay_pairs": 700,
             "seed": 5,

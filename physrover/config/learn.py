@@ -49,6 +49,9 @@ class LearnConfig(ConfigBase):
     """Fresh episodes of the champion team per generation (the learning curve)."""
     critic_hidden: int = 80
     """Hidden units of the intermediate critic (10 -> hidden -> 1, leaky ReLU)."""
+    critic_step_input: bool = False
+    """Beyond the paper: the critic also sees the pair's step t / (T - 1) as an input (11
+    inputs with the paper's sensor); off is the paper's critic."""
     leaky_slope: float = 0.01
     """Slope of the critic's leaky ReLU for negative inputs."""
     critic_lr: float = 5e-6

@@ -29,7 +29,8 @@ oracle): for weights ``u_n`` on pairs x_n,
 ``g = lrelu'(X W1 + b1)``.
 
 Pairs have D = n_in + 2 inputs: the sensor's observation and the action (10 with the
-paper's sensor).
+paper's sensor). Beyond the paper, ``step_input`` appends the pair's step t / (T - 1) as an
+eleventh input, so a critic can value *when* a state is reached, not only where.
 """
 
 from __future__ import annotations
@@ -150,6 +151,7 @@ class CriticSettings:
     capacity: int  # trajectories (regular) or pairs (inexact)
     batch: int
     batches: int
+    step_input: bool = False  # the critic also sees t / (T - 1) (beyond the paper)
 
 
 class FitnessCritic:
@@ -165,6 +167,8 @@ class FitnessCritic:
     ):
         if settings.optimizer not in ("sgd", "adam"):
             raise ValueError(f"unknown optimizer {settings.optimizer!r}")
+        # With step_input each pair gains a last input, its step's t / (T - 1) in [0, 1].
+        pair_dim += int(settings.step_input)
         self.settings, self.pair_dim = settings, pair_dim
         self.critics = IntermediateCritics(n_rovers, pair_dim, settings.hidden, settings.slope, rng)
         n_params = settings.hidden * (pair_dim + 1) + 1
@@ -174,14 +178,27 @@ class FitnessCritic:
         item = (steps, pair_dim) if settings.update == "regular" else (pair_dim,)
         self.buffer = ReplayBuffer(n_rovers, settings.capacity, item)
 
+    def inputs(self, trajectories: np.ndarray) -> np.ndarray:
+        """The critic's inputs for (R, k, T, D) state-action trajectories: themselves, or
+        with ``step_input`` a last column t / (T - 1) (float32) appended to every pair."""
+        if not self.settings.step_input:
+            return trajectories
+        n_rovers, k, steps, width = trajectories.shape
+        out = np.empty((n_rovers, k, steps, width + 1), dtype=np.float32)
+        out[..., :width] = trajectories
+        out[..., width] = np.arange(steps, dtype=np.float32) / np.float32(max(steps - 1, 1))
+        return out
+
     def fitness(self, trajectories: np.ndarray) -> np.ndarray:
         """F(T) of (R, k, T, D) trajectories -> (R, k)."""
+        trajectories = self.inputs(trajectories)
         n_rovers, k, steps, _ = trajectories.shape
         values = self.critics(trajectories.reshape(n_rovers, k * steps, self.pair_dim))
         return aggregate(values.reshape(n_rovers, k, steps), self.settings.aggregation)[0]
 
     def store(self, trajectories: np.ndarray, feedback: np.ndarray) -> None:
         """Add (R, k, T, D) trajectories with their (R, k) immediate feedback."""
+        trajectories = self.inputs(trajectories)
         if self.settings.update == "regular":
             self.buffer.add(trajectories, feedback)
         else:  # every pair carries its trajectory's feedback

@@ -230,6 +230,7 @@ def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
         capacity=cfg.replay_trajectories if regular else cfg.replay_pairs,
         batch=cfg.trajectory_batch if regular else cfg.pair_batch,
         batches=cfg.trajectory_batches if regular else cfg.pair_batches,
+        step_input=cfg.critic_step_input,
     )
     return CriticFitness(
         FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)
