@@ -181,3 +181,26 @@ def test_step_input_appends_the_step_to_every_pair():
     np.testing.assert_array_equal(timed.fitness(trajectories), values.max(-1))
     timed.store(trajectories, np.ones((2, 5)))
     assert timed.buffer.size == 15 and timed.update(rng) >= 0.0
+
+
+def test_top_k_fitness_is_the_mean_of_the_k_largest_values():
+    import dataclasses as dc
+
+    import pytest
+
+    from physrover.config import ConfigError, LearnConfig
+    from physrover.learn.critics import CriticSettings, FitnessCritic
+
+    settings = CriticSettings("max", "inexact", 4, 0.01, 1e-3, "sgd", 100, 5, 2)
+    rng = np.random.default_rng(1)
+    critic = FitnessCritic(2, 6, 10, dc.replace(settings, top_k=3), rng)
+    trajectories = rng.uniform(-1, 1, (2, 4, 6, 10)).astype(np.float32)
+    values = critic.critics(trajectories.reshape(2, 24, 10)).reshape(2, 4, 6)
+    expected = np.sort(values, axis=-1)[..., -3:].mean(-1)  # plain sort, the 3 largest
+    np.testing.assert_allclose(critic.fitness(trajectories), expected, rtol=1e-6)
+    critic_1 = FitnessCritic(2, 6, 10, settings, np.random.default_rng(1))
+    np.testing.assert_array_equal(critic_1.fitness(trajectories), values.max(-1))
+    with pytest.raises(ConfigError, match="critic_top_k: a softer max is for the max critic"):
+        LearnConfig(method="mean-critic", critic_top_k=3)
+    with pytest.raises(ConfigError, match="critic_top_k: must be >= 1"):
+        LearnConfig(critic_top_k=0)

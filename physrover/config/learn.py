@@ -52,6 +52,9 @@ class LearnConfig(ConfigBase):
     critic_step_input: bool = False
     """Beyond the paper: the critic also sees the pair's step t / (T - 1) as an input (11
     inputs with the paper's sensor); off is the paper's critic."""
+    critic_top_k: int = 1
+    """Beyond the paper: the max critic's fitness is the mean of the k largest critic values
+    along the trajectory (1: their max, Eq. 3, the paper's). Inexact updates only."""
     leaky_slope: float = 0.01
     """Slope of the critic's leaky ReLU for negative inputs."""
     critic_lr: float = 5e-6
@@ -85,6 +88,12 @@ class LearnConfig(ConfigBase):
             )
         check(self.feedback in CREDITS, "feedback", CREDITS.unknown_message(self.feedback))
         check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
+        check(self.critic_top_k >= 1, "critic_top_k", f"must be >= 1, got {self.critic_top_k}")
+        check(
+            self.critic_top_k == 1 or self.method in ("max-critic", *TRAINERS),
+            "critic_top_k",
+            f"a softer max is for the max critic with inexact updates, not {self.method!r}",
+        )
         check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         check(self.population >= 2, "population", f"must be >= 2, got {self.population}")

@@ -30,7 +30,10 @@ oracle): for weights ``u_n`` on pairs x_n,
 
 Pairs have D = n_in + 2 inputs: the sensor's observation and the action (10 with the
 paper's sensor). Beyond the paper, ``step_input`` appends the pair's step t / (T - 1) as an
-eleventh input, so a critic can value *when* a state is reached, not only where.
+eleventh input, so a critic can value *when* a state is reached, not only where; and
+``top_k`` > 1 makes the max critic's fitness the mean of the k largest values along the
+trajectory instead of the largest alone (a softer max, less sensitive to one over-valued
+pair; its inexact updates are per pair, so only the fitness changes).
 """
 
 from __future__ import annotations
@@ -152,6 +155,7 @@ class CriticSettings:
     batch: int
     batches: int
     step_input: bool = False  # the critic also sees t / (T - 1) (beyond the paper)
+    top_k: int = 1  # max aggregation as the mean of the k largest values (1: Eq. 3)
 
 
 class FitnessCritic:
@@ -194,7 +198,11 @@ class FitnessCritic:
         trajectories = self.inputs(trajectories)
         n_rovers, k, steps, _ = trajectories.shape
         values = self.critics(trajectories.reshape(n_rovers, k * steps, self.pair_dim))
-        return aggregate(values.reshape(n_rovers, k, steps), self.settings.aggregation)[0]
+        values = values.reshape(n_rovers, k, steps)
+        top_k = min(self.settings.top_k, steps)
+        if self.settings.aggregation == "max" and top_k > 1:  # beyond the paper: a softer max
+            return np.partition(values, steps - top_k, axis=-1)[..., steps - top_k :].mean(-1)
+        return aggregate(values, self.settings.aggregation)[0]
 
     def store(self, trajectories: np.ndarray, feedback: np.ndarray) -> None:
         """Add (R, k, T, D) trajectories with their (R, k) immediate feedback."""

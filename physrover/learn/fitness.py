@@ -231,6 +231,7 @@ def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
         batch=cfg.trajectory_batch if regular else cfg.pair_batch,
         batches=cfg.trajectory_batches if regular else cfg.pair_batches,
         step_input=cfg.critic_step_input,
+        top_k=cfg.critic_top_k,
     )
     return CriticFitness(
         FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)
