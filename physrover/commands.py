@@ -63,6 +63,16 @@ def cmd_methods(args: argparse.Namespace) -> int:
     for name, spec in TRAINERS.items():
         print(f"{name:{width}}  {spec.reference:{sections}}  {spec.summary}")
     print('\nchoose with: physrover train --method NAME  (or [learn] method = "NAME")')
+    from physrover.registry import CREDITS, DYNAMICS, SCENARIOS, SENSORS
+
+    print("\nthe other seams (physrover.registry; README: Extending physrover):")
+    for label, registry, how in (
+        ("credit signals", CREDITS, "--set feedback=NAME"),
+        ("scenarios", SCENARIOS, "--set scenario=NAME"),
+        ("sensors", SENSORS, "--set sensor=NAME"),
+        ("motion models", DYNAMICS, "--set motion=NAME"),
+    ):
+        print(f"  {label + ':':16} {', '.join(registry.names()):38} {how}")
     return 0
 
 

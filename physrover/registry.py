@@ -42,13 +42,18 @@ class Registry(Generic[T]):
     def __init__(self, kind: str):
         self.kind = kind
         self._entries: dict[str, T] = {}
+        self._aliases: set[str] = set()
 
-    def register(self, name: str, entry: T, *, replace: bool = False) -> T:
+    def register(self, name: str, entry: T, *, replace: bool = False, alias: bool = False) -> T:
+        """Add ``entry`` under ``name``; an ``alias`` (an old name kept so old files load)
+        is found by lookups but not listed by :meth:`names`."""
         if not isinstance(name, str) or not name:
             raise ValueError(f"a {self.kind} name must be a non-empty string, got {name!r}")
         if name in self._entries and not replace:
             raise ValueError(f"{self.kind} {name!r} is already registered")
         self._entries[name] = entry
+        if alias:
+            self._aliases.add(name)
         return entry
 
     def register_class(self, cls: type, base: type, name_attr: str, *, replace: bool = False):
@@ -62,8 +67,8 @@ class Registry(Generic[T]):
 
     def unknown_message(self, name: str) -> str:
         return (
-            f"unknown {self.kind} {name!r}{did_you_mean(name, self._entries)}; "
-            f"known: {', '.join(self._entries)}"
+            f"unknown {self.kind} {name!r}{did_you_mean(name, self.names())}; "
+            f"known: {', '.join(self.names())}"
         )
 
     def __getitem__(self, name: str) -> T:
@@ -82,7 +87,8 @@ class Registry(Generic[T]):
         return len(self._entries)
 
     def names(self) -> tuple[str, ...]:
-        return tuple(self._entries)
+        """The registered names, aliases left out."""
+        return tuple(n for n in self._entries if n not in self._aliases)
 
     def items(self):
         return self._entries.items()

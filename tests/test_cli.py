@@ -61,6 +61,8 @@ def test_methods_lists_every_registered_method(capsys):
             line = next(line for line in out.splitlines() if line.split()[:1] == [method])
             assert spec.summary in line and spec.section in line
         assert RunConfig().with_overrides({"method": name}).learn.method == name
+        assert "scenarios:       ring, ring-random, uniform, explicit" in out
+        assert "sensors:         density " in out  # the old name "quadrants" is an alias
     finally:
         del FITNESS_METHODS._entries[name]
 

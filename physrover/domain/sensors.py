@@ -129,4 +129,4 @@ class Density(Fused, Sensor, fused=True):
 
 # Run directories written while this sensor was named "quadrants" (before sector counts)
 # still load: the name is an alias of the density sensor with its default four sectors.
-SENSORS.register("quadrants", Density)
+SENSORS.register("quadrants", Density, alias=True)
