@@ -41,7 +41,7 @@ def read_run(run_dir: Path, episodes: int, seed: int) -> dict[str, np.ndarray]:
     if critic is None:
         raise SystemExit(f"{run_dir}: method {config.learn.method!r} has no critic")
     d = config.domain
-    env = RoverVectorEnv(episodes, config=d)
+    env = RoverVectorEnv(episodes, config=d, fresh_teams=episodes)
     policy = ccea.layout.prepare(np.broadcast_to(ccea.champion_genomes(), (episodes,
                                                  *ccea.champion_genomes().shape)))  # fmt: skip
     obs, _ = env.reset(seed=seed)

@@ -115,9 +115,11 @@ def cmd_train(args: argparse.Namespace) -> int:
     else:
         config = _run_config(args)
         cfg = config.learn
+        n_req = "-".join(map(str, config.domain.n_req_per_poi))
+        if len(set(config.domain.n_req_per_poi)) == 1:
+            n_req = str(config.domain.n_req_per_poi[0])
         out = Path(
-            args.out
-            or f"runs/{cfg.method}_{config.domain.motion}_nreq{config.domain.n_req}_seed{cfg.seed}"
+            args.out or f"runs/{cfg.method}_{config.domain.motion}_nreq{n_req}_seed{cfg.seed}"
         )
     try:
         if args.resume:

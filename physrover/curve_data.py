@@ -116,8 +116,8 @@ def load_runs(
             fields |= {f"{section}.{k}": v for k, v in config.trainer.to_dict().items()}
         all_fields.append(fields)
     for name, option in [(n, "--by") for n in by] + ([(x, "--final")] if x else []):
-        if name not in _FIELD_ORDER:
-            raise ConfigError(name, f"not a config field ({option})")
+        if name not in _FIELD_ORDER and not any(name in f for f in all_fields):
+            raise ConfigError(name, f"not a config field of these runs ({option})")
     split = set(differing_fields(all_fields, skip=(x,) if x else ())) | set(by)
     order = list(_FIELD_ORDER) + sorted(split - set(_FIELD_ORDER))
     names = [n for n in order if n in split and n not in ("method", x)]

@@ -66,16 +66,19 @@ class RoverEnv(gymnasium.Env):
     to [-1, 1]; NaN raises ``ValueError``.
 
     ## Observation Space
-    ``Box(0, inf, (R, 8), float32)``: per rover, rover density in its quadrants 0-3 (Eq. 15)
-    then POI value density in quadrants 0-3 (Eq. 16); quadrants 0 behind-right, 1
-    front-right, 2 front-left, 3 behind-left (see :mod:`physrover.domain.geometry`).
+    ``(R, n_obs)`` float32 from the configured sensor (:mod:`physrover.domain.sensors`). The
+    paper's (``[sensor] kind = "density"``, 4 sectors): ``Box(0, inf, (R, 8), float32)``, per
+    rover the rover density in its quadrants 0-3 (Eq. 15) then POI value density in
+    quadrants 0-3 (Eq. 16); quadrants 0 behind-right, 1 front-right, 2 front-left, 3
+    behind-left.
 
     ## Rewards
     The increase of G at each step (the first step's reward also includes a capture at
     reset), so the rewards of an episode sum to its G.
 
     ## Starting State
-    POIs evenly on a ring of radius ``poi_ring_radius`` (first at angle 0, then
+    Drawn by the configured scenario (:mod:`physrover.domain.scenarios`). The paper's
+    (``ring``): POIs evenly on a ring of radius ``poi_ring_radius`` (first at angle 0, then
     counter-clockwise); rovers uniform in a disc of radius ``spawn_radius``; headings uniform
     in [-pi, pi). ``reset(options=...)`` may give ``rover_positions`` (R, 2),
     ``rover_headings`` (R,), ``poi_positions`` (K, 2), ``poi_values`` (K,).
@@ -194,7 +197,13 @@ class RoverVectorEnv(VectorEnv):
     vector envs do. The wrapped :class:`RoverWorld` is ``world``; its recorded trajectories
     serve the fitness critics.
 
-    Arguments: ``RoverVectorEnv(num_envs, config=None, render_mode=None, **fields)``.
+    Start states follow the scenario's ``redraw`` (:mod:`physrover.domain.scenarios`): under
+    ``"generation"`` one draw is shared by all teams of a reset but the last
+    ``fresh_teams``, which draw their own (evaluation envs pass ``fresh_teams=num_envs``:
+    every team its own start); under ``"never"`` all teams start alike.
+
+    Arguments: ``RoverVectorEnv(num_envs, config=None, render_mode=None, fresh_teams=0,
+    **fields)``.
     """
 
     metadata = {"render_modes": [], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -204,6 +213,7 @@ class RoverVectorEnv(VectorEnv):
         num_envs: int = 1,
         config: DomainConfig | Mapping[str, Any] | None = None,
         render_mode: str | None = None,
+        fresh_teams: int = 0,
         **fields: Any,
     ):
         if int(num_envs) < 1:
@@ -217,6 +227,7 @@ class RoverVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.world = RoverWorld(self.config, n_teams=self.num_envs)
+        self.world.fresh_teams = int(fresh_teams)
         self._rngs: list[np.random.Generator] | None = None
         self._last_G = np.zeros(self.num_envs)
         self._needs_reset = False

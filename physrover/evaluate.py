@@ -89,7 +89,7 @@ def evaluate_run(
     changes = {k: v for k, v in changes.items() if v is not None}
     domain = config.domain.replace(**changes)
     generation, genomes = load_champions(run_dir, checkpoint)
-    env = RoverVectorEnv(episodes, config=domain)
+    env = RoverVectorEnv(episodes, config=domain, fresh_teams=episodes)  # each its own start
     act = PolicyLayout(config.learn.hidden, env.single_observation_space.shape[-1]).prepare(
         np.broadcast_to(genomes, (episodes, *genomes.shape))
     )

@@ -108,3 +108,23 @@ def test_parse_override(text, expected):
 def test_parse_override_needs_equals():
     with pytest.raises(ConfigError, match="expected FIELD=VALUE"):
         parse_override("n_req")
+
+
+def test_overrides_are_applied_as_a_whole_and_by_any_spelling():
+    from physrover.config import RunConfig
+
+    # A new scenario kind and fields that only fit together are checked together.
+    base = RunConfig(DomainConfig(poi_values=[1, 2, 3]))
+    c = base.with_overrides({"scenario": "explicit", "poi_positions": [[1, 0], [0, 1], [-1, 0]]})
+    assert len(c.domain.scenario.poi_positions) == 3
+    d = DomainConfig.from_dict({"poi_values": [1, 2, 3], "scenario": "explicit",
+                                "poi_positions": [[1, 0], [0, 1], [-1, 0]]})  # fmt: skip
+    assert d.scenario == c.domain.scenario
+    # Naming the current kind keeps its parameters; the TOML spellings work.
+    rr = DomainConfig(scenario={"kind": "ring-random", "ring_thickness": 0.5})
+    assert rr.replace(scenario="ring-random").scenario.ring_thickness == 0.5
+    assert DomainConfig().replace(**{"scenario.kind": "uniform"}).scenario.kind == "uniform"
+    assert DomainConfig().replace(**{"domain.physics": {"substeps": 2}}).physics.substeps == 2
+    # A trainer's table cannot take the run's seed.
+    with pytest.raises(ConfigError, match=r"mappo.seed: set seed in \[learn\]"):
+        RunConfig().with_overrides({"method": "mappo", "mappo.seed": 7})

@@ -45,7 +45,7 @@ def test_uniform_keeps_its_square_and_separation():
     gaps = np.linalg.norm(pois[:, :, None] - pois[:, None], axis=-1)
     gaps[:, np.arange(4), np.arange(4)] = np.inf
     assert gaps.min() >= 4.0
-    with pytest.raises(ConfigError, match="min_separation: 4 POIs cannot be 30.0 apart"):
+    with pytest.raises(ConfigError, match="min_separation: 4 POIs cannot be drawn 30.0 apart"):
         DomainConfig(scenario={"kind": "uniform", "half_size": 6.0, "min_separation": 30.0})
 
 
@@ -168,3 +168,36 @@ def test_obstacles_stop_physical_rovers_and_are_an_error_under_ideal_motion():
     assert track[-1, :, 0].max() < 4.0  # in front of it
     with pytest.raises(ConfigError, match=r"obstacle_discs: every obstacle is \[x, y, radius"):
         DomainConfig(scenario={"kind": "explicit", "obstacle_discs": [[1.0, 2.0, -1.0]]})
+
+
+def test_uniform_draws_a_dense_layout_it_accepts():
+    # 10 POIs 8.5 apart in a 30 x 30 square: accepted, and every draw succeeds (a bad early
+    # placement restarts the layout instead of failing the reset).
+    scenario = {"kind": "uniform", "half_size": 15.0, "min_separation": 8.5}
+    config = DomainConfig(poi_values=tuple(range(1, 11)), scenario=scenario)
+    world = RoverWorld(config, 20)
+    for s in range(5):
+        world.reset([np.random.default_rng(100 * s + e) for e in range(20)])
+        gaps = np.linalg.norm(
+            world.poi_positions[:, :, None] - world.poi_positions[:, None], axis=-1
+        )
+        gaps[:, np.arange(10), np.arange(10)] = np.inf
+        assert gaps.min() >= 8.5
+    with pytest.raises(ConfigError, match="10 POIs cannot be drawn 10.0 apart"):
+        config.replace(min_separation=10.0)
+
+
+def test_evaluation_envs_draw_a_fresh_start_per_team_under_generation_redraws():
+    scenario = {"kind": "ring-random", "redraw": "generation"}
+    shared = RoverVectorEnv(4, scenario=scenario)
+    fresh = RoverVectorEnv(4, scenario=scenario, fresh_teams=4)
+    shared.reset(seed=0)
+    fresh.reset(seed=0)
+    assert len({shared.world.poi_positions[e].tobytes() for e in range(4)}) == 1
+    assert len({fresh.world.poi_positions[e].tobytes() for e in range(4)}) == 4
+    # Each fresh team starts as RoverEnv with its own seed under "episode" redraws.
+    single = RoverEnv(scenario="ring-random")
+    single.reset(seed=2)
+    np.testing.assert_array_equal(
+        fresh.world.poi_positions[2], single.unwrapped.world.poi_positions[0]
+    )

@@ -238,3 +238,16 @@ def test_the_fused_step_equals_its_parts_called_in_turn():
     assert a.G.max() > 0
     for name in ("observations", "actions", "position_history", "heading_history", "G", "D"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def test_a_name_in_two_tables_must_be_written_with_its_table():
+    @dataclasses.dataclass(frozen=True)
+    class SpawnSensor(Sectors):  # a sensor with a field named as the scenario's
+        kind: ClassVar[str] = "test-spawn-sensor"
+        spawn_radius: float = 1.0
+
+    config = DomainConfig(sensor=SpawnSensor())
+    with pytest.raises(ConfigError, match="spawn_radius: is in .scenario. and .sensor.: write"):
+        config.replace(spawn_radius=5.0)
+    assert config.replace(**{"sensor.spawn_radius": 5.0}).sensor.spawn_radius == 5.0
+    assert config.replace(**{"scenario.spawn_radius": 5.0}).scenario.spawn_radius == 5.0

@@ -4,7 +4,7 @@ Field names are the public vocabulary of physrover: the same names are used in T
 on the command line (``--set n_req=5``, ``--set physics.substeps=2``) and as keyword
 arguments of the gymnasium environments (``RoverVectorEnv(50, n_req=5, collisions=False)``).
 A bare name is looked up in [domain], then [physics], the scenario's and the sensor's
-tables (no name is in two of them).
+tables (a name in two of them must be written ``table.field``).
 
 The scenario (start states) and the sensor (observations) are components chosen by name
 (``[scenario] kind = "ring"``, :mod:`physrover.domain.scenarios`; ``[sensor] kind =
@@ -76,6 +76,8 @@ class PhysicsConfig(ConfigBase):
         self._coerce_fields()
         for name in PER_ROVER:
             value = getattr(self, name)
+            if isinstance(value, np.ndarray):  # a per-rover array given in code
+                value = value.tolist()
             if isinstance(value, (list, tuple)):
                 value = tuple(coerce(name, float, v) for v in value)
                 check(len(value) >= 1, name, "a list needs one value per rover")
@@ -111,8 +113,11 @@ def _physics(value: Any) -> PhysicsConfig:
 
 
 COMPONENTS = ("physics", "scenario", "sensor")
-SCORED_STATES = ("all", "before-steps")
 """The fields of :class:`DomainConfig` that hold a table of their own."""
+REGISTRIES = {"scenario": SCENARIOS, "sensor": SENSORS}
+DEFAULT_KINDS = {"scenario": "ring", "sensor": "density"}
+"""The kinds a scenario and a sensor have when a config names none (the paper's)."""
+SCORED_STATES = ("all", "before-steps")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -159,10 +164,10 @@ class DomainConfig(ConfigBase):
         self._coerce_fields()
         physics = _physics(self.physics)
         object.__setattr__(self, "physics", physics)
-        object.__setattr__(
-            self, "scenario", component(self.scenario, SCENARIOS, "scenario", "ring")
-        )
-        object.__setattr__(self, "sensor", component(self.sensor, SENSORS, "sensor", "density"))
+        for section in ("scenario", "sensor"):
+            value = component(getattr(self, section), REGISTRIES[section], section,
+                              DEFAULT_KINDS[section])  # fmt: skip
+            object.__setattr__(self, section, value)
         check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
         check(len(self.poi_values) >= 1, "poi_values", "must list at least one POI value")
         for v in self.poi_values:
@@ -256,16 +261,27 @@ class DomainConfig(ConfigBase):
         return flat
 
     def replace(self, **changes: Any) -> DomainConfig:
-        """A copy with ``changes`` applied and validated. Names are bare (``substeps``) or
-        dotted (``physics.substeps``); ``scenario="NAME"`` or ``sensor="NAME"`` picks another
-        kind with its defaults (then set its fields in the same call)."""
+        """A copy with ``changes`` applied and validated once, as a whole.
+
+        Names are bare (``substeps``) or dotted (``physics.substeps``, ``domain.n_req``,
+        ``scenario.kind``); ``scenario="NAME"`` or ``sensor="NAME"`` picks that kind with its
+        defaults (the current parameters if it is the current kind), and its fields may
+        follow in the same call. A bare name that two of the tables have is an error that
+        says which to write.
+        """
+        changes = dict(changes)
+        for section in ("scenario", "sensor"):  # the TOML spelling of a kind change
+            if f"{section}.kind" in changes:
+                changes[section] = changes.pop(f"{section}.kind")
+            if f"domain.{section}" in changes:
+                changes[section] = changes.pop(f"domain.{section}")
+        if "domain.physics" in changes:
+            changes["physics"] = changes.pop("domain.physics")
         parts = {
             "physics": _physics(changes.pop("physics", self.physics)),
-            "scenario": component(changes.pop("scenario", self.scenario), SCENARIOS,
-                                  "scenario", "ring"),
-            "sensor": component(changes.pop("sensor", self.sensor), SENSORS, "sensor",
-                                "density"),
-        }  # fmt: skip
+            "scenario": self._component("scenario", changes.pop("scenario", self.scenario)),
+            "sensor": self._component("sensor", changes.pop("sensor", self.sensor)),
+        }
         own, fields = {}, {name: {} for name in COMPONENTS}
         for name, value in changes.items():
             section, _, field = name.rpartition(".")
@@ -274,26 +290,33 @@ class DomainConfig(ConfigBase):
             elif section == "domain" or (not section and name in self.field_names()):
                 own[field] = value
             else:
-                part = next((p for p in COMPONENTS if field in parts[p].field_names()), None)
-                if section or part is None:
-                    hint = did_you_mean(field, [*self.field_names(),
-                                                *(f for p in parts.values()
-                                                  for f in p.field_names())])  # fmt: skip
+                holders = [p for p in COMPONENTS if field in parts[p].field_names()]
+                if section or not holders:
+                    known = [*self.field_names(), *(f for p in parts.values()
+                                                    for f in p.field_names())]  # fmt: skip
+                    hint = did_you_mean(field, known)
                     raise ConfigError(name, f"unknown DomainConfig field{hint}")
-                fields[part][field] = value
+                if len(holders) > 1:
+                    raise ConfigError(name, f"is in [{holders[0]}] and [{holders[1]}]: write "
+                                      f"{holders[0]}.{name} or {holders[1]}.{name}")  # fmt: skip
+                fields[holders[0]][field] = value
         for section, values in fields.items():
             if values:
                 parts[section] = parts[section].replace(**values)
         return DomainConfig(**{**self.to_dict(), **own, **parts})
 
+    def _component(self, section: str, value: Any):
+        """The scenario or sensor ``value`` names; the current one for its own kind's name."""
+        current = getattr(self, section)
+        if isinstance(value, str) and value == current.kind:
+            return current
+        return component(value, REGISTRIES[section], section, DEFAULT_KINDS[section])
+
     @classmethod
     def from_dict(cls, values: Mapping[str, Any]) -> DomainConfig:
         """From the [domain] table, optionally with bare names of the other tables' fields
         (the envs' keyword arguments; the layout of run directories before 0.2)."""
-        values = dict(values)
-        own = {k: values.pop(k) for k in list(values) if k in cls.field_names()}
-        base = cls(**own)
-        return base.replace(**values) if values else base
+        return cls().replace(**values) if values else cls()
 
     def to_toml(self) -> str:
         return dumps_toml(self.tables())

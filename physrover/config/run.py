@@ -15,7 +15,7 @@ from physrover.config.base import (
     loads_toml,
     naming_file,
 )
-from physrover.config.domain import COMPONENTS, DomainConfig
+from physrover.config.domain import COMPONENTS, REGISTRIES, DomainConfig
 from physrover.config.learn import LearnConfig
 from physrover.registry import TRAINERS
 
@@ -106,8 +106,11 @@ class RunConfig:
         a bare name that two active tables share is an error that says which to write."""
         domain, learn, trainer = {}, {}, {}
         # the fields of a scenario or sensor chosen in the same overrides are domain fields
-        kinds = {k: overrides[k] for k in ("scenario", "sensor") if k in overrides}
-        domain_names = self.domain.replace(**kinds).flat_dict()
+        domain_names = set(self.domain.flat_dict())
+        for section, registry in REGISTRIES.items():
+            kind = overrides.get(section, overrides.get(f"{section}.kind"))
+            if isinstance(kind, str) and kind in registry:
+                domain_names |= set(registry[kind].field_names())
         for name, value in overrides.items():
             table, _, field = name.rpartition(".")
             if table in ("domain", *COMPONENTS):
@@ -115,6 +118,8 @@ class RunConfig:
             elif table == "learn":
                 learn[field] = value
             elif table:
+                if field in SHARED_WITH_LEARN:
+                    raise ConfigError(name, f"set {field} in [learn] (learn.{field})")
                 trainer[(table, field)] = value
             elif name in domain_names:
                 domain[name] = value

@@ -3,7 +3,7 @@
 A motion model is a :class:`Dynamics` subclass, built per world as ``cls(config, n_teams)``
 (``config`` the :class:`~physrover.config.DomainConfig`), that writes the rover arrays of the
 world's :class:`~physrover.domain.state.WorldState` (positions, headings and their cosines
-and sines) and nothing else. Built in:
+and sines, velocities) and nothing else. Built in:
 
 - ``ideal`` (:class:`Ideal`, the paper's kinematics, Section 4.1.2): the action (forward,
   left) in the rover's frame is the step's displacement, and the rover turns to face it.

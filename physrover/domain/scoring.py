@@ -10,8 +10,9 @@
 
 Steps are scored after reset and after every environment step (``steps + 1`` times), by the
 compiled :func:`physrover.domain.kernels.score` into the scoring arrays of the world's
-:class:`~physrover.domain.state.WorldState`; memory is O(E R K), not O(T E R K): D is
-tracked online, through ``captured_without``.
+:class:`~physrover.domain.state.WorldState`: D is tracked online, through
+``captured_without`` (O(E R K)); the per-step record ``in_range`` (O(T E R K) bools, 0.2 MB
+at paper scale) is what D++ replays.
 """
 
 from __future__ import annotations

@@ -83,10 +83,11 @@ class CCEA:
         self.method = make_method(cfg, Problem(self.n_rovers, d.steps, n_obs, n_act), critic_init)
         self.credit = CREDITS[cfg.feedback]  # each rover's immediate feedback
         self.n_train = self.method.rounds * self.k
-        self.env = RoverVectorEnv(self.n_train + cfg.eval_episodes, config=d)
         # a scenario redrawn per generation: the training teams share one start state and
         # the champion's evaluation episodes draw fresh ones
-        self.env.world.fresh_teams = cfg.eval_episodes
+        self.env = RoverVectorEnv(
+            self.n_train + cfg.eval_episodes, config=d, fresh_teams=cfg.eval_episodes
+        )
         self.env.reset(seed=int(env_seq.integers(2**31)))
         self.fitness = np.zeros((self.n_rovers, self.k))
         self.champion = np.zeros(self.n_rovers, dtype=np.int64)

@@ -208,7 +208,9 @@ class Trainer:
         self.gen = torch_generator(draw_seed)
         self.env = RoverVectorEnv(config.num_envs, config=self.domain)
         self.env.reset(seed=env_seed)
-        self.eval_env = RoverVectorEnv(config.eval_episodes, config=self.domain)
+        self.eval_env = RoverVectorEnv(
+            config.eval_episodes, config=self.domain, fresh_teams=config.eval_episodes
+        )
         self.eval_env.reset(seed=eval_seed)
         self.iterations = 0
         """Iterations completed."""
@@ -300,7 +302,8 @@ class Trainer:
                 raise ValueError("evaluate(episodes=N) needs a seed for the N fresh episodes")
             env = self.eval_env
         else:
-            env = RoverVectorEnv(episodes or self.config.eval_episodes, config=self.domain)
+            n = episodes or self.config.eval_episodes
+            env = RoverVectorEnv(n, config=self.domain, fresh_teams=n)
             env.reset(seed=seed)
         return float(run_episodes(env, lambda obs, t: self.act(obs)).G.mean())
 

@@ -53,10 +53,10 @@ class RoverParallelEnv(ParallelEnv):
     env's arrays. ``agents`` is every rover from ``reset`` until the step limit, then empty.
 
     ## Observation Space
-    Per agent ``Box(0, inf, (8,), float32)``: the rover's row of ``RoverEnv``'s (R, 8)
-    observation, rover density in its quadrants 0-3 (Eq. 15) then POI value density in
-    quadrants 0-3 (Eq. 16). ``state()`` is the R rows concatenated, ``state_space``
-    ``Box(0, inf, (R * 8,), float32)``.
+    Per agent the rover's row of ``RoverEnv``'s (R, n_obs) observation, with the sensor's
+    bounds: with the paper's sensor ``Box(0, inf, (8,), float32)``, rover density in its
+    quadrants 0-3 (Eq. 15) then POI value density in quadrants 0-3 (Eq. 16). ``state()`` is
+    the R rows concatenated, ``state_space`` ``Box(0, inf, (R * 8,), float32)``.
 
     ## Action Space
     Per agent ``Box(-1, 1, (2,), float32)``: a command in the rover's own frame (forward,
@@ -122,19 +122,20 @@ class RoverParallelEnv(ParallelEnv):
         )
         self.config = self.env.config
         self.render_mode = render_mode
-        n_rovers, obs_dim = self.env.observation_space.shape
+        team_obs = self.env.observation_space  # (R, n_obs), bounds from the sensor
+        n_rovers, obs_dim = team_obs.shape
         self.possible_agents = [f"rover_{i}" for i in range(n_rovers)]
         self.agents: list[str] = []
         # One space object per agent, so seeding one agent's space leaves the others alone.
         self.observation_spaces = {
-            agent: spaces.Box(0.0, np.inf, shape=(obs_dim,), dtype=np.float32)
-            for agent in self.possible_agents
+            agent: spaces.Box(team_obs.low[i], team_obs.high[i], dtype=np.float32)
+            for i, agent in enumerate(self.possible_agents)
         }
         self.action_spaces = {
             agent: spaces.Box(-1.0, 1.0, shape=(self.env.action_space.shape[1],), dtype=np.float32)
             for agent in self.possible_agents
         }
-        self.state_space = spaces.Box(0.0, np.inf, shape=(n_rovers * obs_dim,), dtype=np.float32)
+        self.state_space = spaces.Box(team_obs.low.ravel(), team_obs.high.ravel(), dtype=np.float32)
         self._obs: np.ndarray | None = None  # (R, obs_dim) float32, the latest observations
 
     def observation_space(self, agent: str) -> spaces.Box:
