@@ -33,6 +33,10 @@ COMPARISONS = [
         for n in (4, 6)
         for r in (6, 9, 12, 15)
     ],
+    # issue 13, experiment 1 (D++ as the feedback)
+    *[(6, "dpp", ("D on D++", n, 15), ("D", n, 15)) for n in (4, 5, 6)],
+    *[(7, "dpp", ("max-critic on D++", n, 15), ("max-critic", n, 15)) for n in (4, 5, 6)],
+    *[(7, "dpp", ("max-critic", n, 15), ("D on D++", n, 15)) for n in (4, 5, 6)],
 ]
 
 CLAIMS = {
@@ -40,17 +44,23 @@ CLAIMS = {
     3: "the average improves on D at n_req 4-5",
     4: "critics learn everywhere; max critic above mean critic",
     5: "critics comparable or better than the average at every team size",
+    6: "(beyond the paper) D++ rescues D under tight coupling",
+    7: "(beyond the paper) D++ and the max critic: which helps, and do they combine",
 }
 
 
 def load(path: Path) -> dict[tuple, list[float]]:
-    """{(sweep, method, n_req, n_rovers): [final score of each seed]} (idealised runs)."""
+    """{(sweep, method, n_req, n_rovers): [final score of each seed]} (idealised runs; a
+    method run on another feedback than D is named ``METHOD on FEEDBACK``)."""
     cells: dict[tuple, list[float]] = defaultdict(list)
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
             if row["motion"] != "ideal":
                 continue
-            key = (row["sweep"], row["method"], int(row["n_req"]), int(row["n_rovers"]))
+            method = row["method"]
+            if row.get("feedback", "D") not in ("", "D"):  # e.g. "D on D++"
+                method = f"{method} on {row['feedback']}"
+            key = (row["sweep"], method, int(row["n_req"]), int(row["n_rovers"]))
             cells[key].append(float(row["final_G"]))
     return cells
 
