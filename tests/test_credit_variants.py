@@ -176,3 +176,12 @@ def test_the_options_on_the_command_line(capsys):
         assert line in out
     assert main(["info", "--set", "n_req=[1, 2]"]) == 2
     assert "n_req: a list needs one coupling per POI (4), got 2" in capsys.readouterr().err
+
+
+def test_dpp_copies_of_a_rover_help_only_where_it_went():
+    # Per-POI coupling (1, 2): rover 0 sits at POI 0 (captured alone); POI 1 sees nobody.
+    # Copies of rover 0 add nobody at POI 1, so D++ is D = 3 (a first compact version
+    # counted a never-visited POI as reachable with n_req copies).
+    world = _still_episode((1, 2), [AT_0, FAR])
+    np.testing.assert_array_equal(world.D[0], [3.0, 0.0])
+    np.testing.assert_array_equal(d_plus_plus(world.state, world.n_req)[0], [3.0, 0.0])

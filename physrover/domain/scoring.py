@@ -68,16 +68,22 @@ def d_plus_plus(state, n_req: np.ndarray) -> np.ndarray:
     if partners < 1:
         return D
     near = state.in_range  # (T + 1, E, R, K)
-    count = near.sum(axis=2, dtype=np.int64)[:, :, None, :]  # (T + 1, E, 1, K)
+    count = near.sum(axis=2, dtype=np.int32)  # (T + 1, E, K): rovers near each POI
+    # With n copies of rover i, POI k counts if it was captured anyway, or if at a step
+    # where rover i was near it the rovers near it plus n reach its coupling: so only the
+    # most rovers near k at a step rover i was near matters (0: never near, as copies of a
+    # rover that never came near add nobody).
+    most = np.where(near, count[:, :, None, :], 0).max(axis=0)  # (E, R, K)
+    was_near = near.any(axis=0)  # (E, R, K)
+    captured = state.captured[:, None, :]  # (E, 1, K)
     G = state.score[:, None]  # (E, 1)
     values = state.poi_values[:, None, :]  # (E, 1, K)
-    result = D.copy()
-    undecided = np.ones(D.shape, dtype=bool)
     gains = {}
-    for n in (partners, *range(1, partners)):
-        captured = ((count + n * near) >= n_req).any(axis=0)  # (E, R, K)
-        gains[n] = ((captured * values).sum(-1) - G) / n
-    undecided &= gains[partners] > D  # else D++ is D
+    for n in range(1, partners + 1):
+        with_n = captured | (was_near & (most + n >= n_req))  # (E, R, K)
+        gains[n] = ((with_n * values).sum(-1) - G) / n
+    result = D.copy()
+    undecided = gains[partners] > D  # else D++ is D
     for n in range(1, partners + 1):
         take = undecided & (gains[n] > D)
         result[take] = gains[n][take]
