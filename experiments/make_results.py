@@ -316,6 +316,20 @@ def main() -> None:
         )
         summarise("ring-random", runs, ("method", "n_req"))
 
+    # Issue 16, part 3: the stronger-critic screen (compare with the ablation's paper row).
+    fig = root / "stronger-critic"
+    if fig.exists():
+        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]
+        runs = [r for r in runs if _finished(r.path)]
+        regroup(runs, ("critic_step_input", "critic_top_k"))
+        plots.plot_final(
+            plots.final_table(runs, "n_req", last=args.last),
+            OUT / "stronger-critic_final_vs_nreq.png",
+            "n_req",
+            f"max critic variants: final score (last {args.last} generations)",
+        )
+        summarise("stronger-critic", runs, ("critic_step_input", "critic_top_k", "n_req"))
+
     if (root / "ablation").exists():
         ablation_table(root / "ablation", args.last)
     if (root / "marl").exists():
@@ -335,7 +349,8 @@ def main() -> None:
         for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
             name, body = section.split("\n", 1)
             cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
-    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics", "dpp", "ring-random"]
+    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics", "dpp", "ring-random",
+             "stronger-critic"]  # fmt: skip
     rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
     with open(OUT / "runs.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))
