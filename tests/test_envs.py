@@ -97,3 +97,24 @@ def test_vector_declares_autoreset_mode_and_spaces():
     with pytest.raises(ValueError, match="need 3 seeds"):
         venv.reset(seed=[1, 2])
     venv.reset(seed=[5, 6, 7])  # a list of per-team seeds is accepted
+
+
+def test_play_episode_is_reset_then_steps_without_the_infos():
+    from physrover.learn.policies import PolicyLayout
+
+    layout = PolicyLayout(8, 8)
+    genomes = layout.init((6, 5), np.random.default_rng(0))  # (E, R, P)
+    policy = layout.prepare(genomes)
+    a, b = (RoverVectorEnv(6, n_rovers=5, n_req=2, steps=20) for _ in range(2))
+    a.reset(seed=3)
+    b.reset(seed=3)
+    for _ in range(2):  # two episodes: the generators continue alike
+        world = a.play_episode(policy)
+        obs, _ = b.reset()
+        for _ in range(20):
+            obs, *_ = b.step(policy(obs))
+        for name in ("G", "D", "observations", "actions", "position_history"):
+            np.testing.assert_array_equal(getattr(world, name), getattr(b.world, name), name)
+    # Like after a last step, the next step autoresets.
+    obs, rewards, *_ = a.step(np.zeros((6, 5, 2)))
+    assert a.world.t == 0 and not rewards.any()

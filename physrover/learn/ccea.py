@@ -110,10 +110,7 @@ class CCEA:
         if extra is not None:
             table = np.concatenate([table, extra], axis=1)
         policy = self.layout.prepare(table[rovers[None, :], genome_index])  # (E, R, P) genomes
-        obs, _ = self.env.reset()
-        for _ in range(self.config.domain.steps):
-            obs, *_ = self.env.step(policy(obs))
-        world = self.env.world
+        world = self.env.play_episode(policy)
         return world.G.copy(), np.array(self.credit(world), dtype=np.float64)
 
     def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:
