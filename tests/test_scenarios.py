@@ -7,7 +7,7 @@ from gymnasium.utils.env_checker import check_env
 
 from physrover import RoverEnv, RoverVectorEnv
 from physrover.config import ConfigError, DomainConfig, RunConfig
-from physrover.domain.world import RoverWorld
+from physrover.domain.world import RoverWorld, StartOverrides
 
 
 def _world(scenario, n_teams=4, **fields):
@@ -160,10 +160,9 @@ def test_obstacles_stop_physical_rovers_and_are_an_error_under_ideal_motion():
     track = world.position_history[:, :, 0]  # (T + 1, E, 2)
     gap = np.hypot(*(track - [4.0, 0.0]).transpose(2, 0, 1))
     radius = DomainConfig().physics.rover_radius
-    # The centre never enters the disc; the impact at full speed overlaps the rover's body
-    # with it for a moment (measured 0.14 units: pymunk's contacts, no speculative pass for
-    # obstacles), then the rover rests in contact.
-    assert gap.min() > 1.0
+    # The speculative pass stops the full-speed impact at contact (within Chipmunk's slop,
+    # 1% of the radius); without it the body overlapped the disc by 0.14 units for a step.
+    assert gap.min() >= 1.0 + radius - 0.01 * radius - 1e-9
     np.testing.assert_allclose(gap[-1], 1.0 + radius, atol=0.01)
     assert track[-1, :, 0].max() < 4.0  # in front of it
     with pytest.raises(ConfigError, match=r"obstacle_discs: every obstacle is \[x, y, radius"):
@@ -201,3 +200,26 @@ def test_evaluation_envs_draw_a_fresh_start_per_team_under_generation_redraws():
     np.testing.assert_array_equal(
         fresh.world.poi_positions[2], single.unwrapped.world.poi_positions[0]
     )
+
+
+def test_obstacle_contacts_hold_at_every_impact_phase_and_angle():
+    # Rovers start 3.0-4.0 from a disc of radius 1 (so the impact falls at different
+    # points of the step), aimed at it head-on and off-centre, at full speed.
+    starts, headings = [], []
+    for distance in np.linspace(3.0, 4.0, 9):
+        for offset in (0.0, 0.5, 1.0):  # lateral offset of the aim, world units
+            starts.append([-distance, offset])
+            headings.append(0.0)
+    n = len(starts)
+    scenario = {"kind": "explicit", "poi_positions": [[0.0, 30.0]],
+                "obstacle_discs": [[0.0, 0.0, 1.0]]}  # fmt: skip
+    world = _world(scenario, n_teams=n, n_rovers=1, n_req=1, poi_values=(1.0,), steps=8,
+                   motion="physics")  # fmt: skip
+    world.reset([np.random.default_rng(e) for e in range(n)],
+                StartOverrides(np.array(starts)[:, None], np.array(headings)[:, None]))  # fmt: skip
+    worst = np.inf
+    for _ in range(8):
+        world.step(np.tile([1.0, 0.0], (n, 1, 1)))
+        worst = min(worst, np.hypot(*world.rover_positions[:, 0].T).min())
+    radius = DomainConfig().physics.rover_radius
+    assert worst >= 1.0 + radius - 0.01 * radius - 1e-9

@@ -36,10 +36,10 @@ reach full speed, and its speed never exceeds the command (the velocity moves al
 segment towards ``v*``).
 
 Collisions between rovers of a team are switched by ``collisions`` (shape filters, not
-callbacks). The scenario's obstacles (static discs) and the walls collide with every rover
-through pymunk's own contacts (no speculative pass: keep obstacles wider than a rover's
-travel in one physics step, at most sqrt(2) / substeps; a rover driving into a disc at full
-speed overlaps it by up to ~0.14 units for a step at 4 substeps, then rests in contact).
+callbacks). The scenario's obstacles (static discs) and the walls collide with every rover;
+a speculative pass stops rovers closing into an obstacle as for rover pairs (below), so a
+full-speed hit ends a step within Chipmunk's slop of the disc (walls rely on pymunk's
+contacts alone: a crowd pushed against a wall may overlap it by up to ~0.2 units).
 Chipmunk detects contacts between
 discrete positions, so rovers closing at more
 than a diameter per physics step would pass through each other; before every physics step a
@@ -70,7 +70,13 @@ import pymunk.batch as pb
 from physrover.config import DomainConfig
 from physrover.domain.dynamics import Dynamics, register_dynamics
 from physrover.domain.kernels import heading_trig
-from physrover.domain.physics_kernels import control, setpoints, speculative_contacts, wrap_angles
+from physrover.domain.physics_kernels import (
+    control,
+    setpoints,
+    speculative_contacts,
+    speculative_obstacles,
+    wrap_angles,
+)
 
 _ROVER = 0b01
 _WALL = 0b10
@@ -185,6 +191,12 @@ class PhysicsMotion(Dynamics):
         if config.physics.walls:
             space.add(*self._walls(space.static_body))
         space.add(*self._obstacles(space.static_body))
+        # (E, M, 3) the obstacles in the space's frame, for the speculative pass
+        discs = config.scenario.obstacles()
+        self.discs = None
+        if len(discs):
+            self.discs = np.repeat(discs[None], n_teams, axis=0)
+            self.discs[..., :2] += self.offsets
         self._static_shapes = bool(space.static_body.shapes)
         self.space = space
         self._buffer = pb.Buffer()
@@ -313,6 +325,9 @@ class PhysicsMotion(Dynamics):
             if cfg.physics.collisions:  # no pair may end this physics step passed into another
                 speculative_contacts(s[..., 0:2], out[..., 0:2], self.contact, self.mass, dt,
                                      self.space.collision_slop, 4)  # fmt: skip
+            if self.discs is not None:  # nor into an obstacle
+                speculative_obstacles(s[..., 0:2], out[..., 0:2], self.radius, self.discs, dt,
+                                      self.space.collision_slop)  # fmt: skip
             self._set(_MOTION | _FORCES, out)
             self.space.step(dt)
         s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w

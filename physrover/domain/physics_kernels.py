@@ -152,3 +152,33 @@ def speculative_contacts(positions, velocities, contact, mass, dt, allowance, it
                         changed = True
             if not changed:
                 break
+
+
+@jit
+def speculative_obstacles(positions, velocities, radius, discs, dt, allowance):
+    """Stop rovers from passing into the static discs ``discs`` (E, M, 3: x, y, radius, in
+    the positions' frame) within one physics step, in place: for rover i and disc o with
+    centre distance d, normal n (rover to disc) and approach speed u = v_i . n, the excess
+    ``u - (d - r_i - r_o + allowance) / dt`` is removed from the rover's velocity along n
+    (the disc does not move). As :func:`speculative_contacts` for rover pairs.
+
+    Args:
+        positions: (E, R, 2) centres at the start of the physics step.
+        velocities: (E, R, 2) velocities the step will move them with, updated.
+        radius: (R,) the rovers' radii; dt: the physics step; allowance: the overlap a step
+            may end with (Chipmunk's collision slop).
+    """
+    for e in range(positions.shape[0]):
+        for i in range(positions.shape[1]):
+            for o in range(discs.shape[1]):
+                dx = discs[e, o, 0] - positions[e, i, 0]
+                dy = discs[e, o, 1] - positions[e, i, 1]
+                d = math.sqrt(dx * dx + dy * dy)
+                if d < 1e-12:
+                    continue
+                nx, ny = dx / d, dy / d
+                u = velocities[e, i, 0] * nx + velocities[e, i, 1] * ny
+                limit = (d - radius[i] - discs[e, o, 2] + allowance) / dt
+                if u > limit:
+                    velocities[e, i, 0] -= (u - limit) * nx
+                    velocities[e, i, 1] -= (u - limit) * ny
