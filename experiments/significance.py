@@ -33,6 +33,16 @@ COMPARISONS = [
         for n in (4, 6)
         for r in (6, 9, 12, 15)
     ],
+    # issue 13, experiment 2: the same claims on random POI layouts (2000 generations)
+    *[(1, "ring-random", ("average", 3, 15), (m, 3, 15)) for m in ("max-critic", "D")],
+    *[(3, "ring-random", ("average", n, 15), ("D", n, 15)) for n in (4, 5)],
+    *[(4, "ring-random", ("max-critic", n, 15), ("mean-critic", n, 15)) for n in (3, 4, 5, 6)],
+    *[
+        (4, "ring-random", (m, n, 15), ("average", n, 15))
+        for m in ("max-critic", "mean-critic")
+        for n in (5, 6)
+    ],  # fmt: skip
+    (4, "ring-random", ("average", 4, 15), ("max-critic", 4, 15)),
     # issue 13, experiment 1 (D++ as the feedback)
     *[(6, "dpp", ("D on D++", n, 15), ("D", n, 15)) for n in (4, 5, 6)],
     *[(7, "dpp", ("max-critic on D++", n, 15), ("max-critic", n, 15)) for n in (4, 5, 6)],
