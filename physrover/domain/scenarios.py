@@ -199,20 +199,18 @@ class Ring(SpawnDisc):
 
 @register_scenario
 @dataclasses.dataclass(frozen=True)
-class RingRandom(SpawnDisc):
-    """POIs at random angles on a ring (the lab's harness); rovers in the spawn disc."""
+class RingRandom(Ring):
+    """POIs at random angles on a ring (the lab's harness); rovers in the spawn disc. The
+    ring's radius ``poi_ring_radius`` is its outer radius."""
 
     kind: ClassVar[str] = "ring-random"
 
-    poi_ring_radius: float = 15.0
-    """Outer radius of the ring, world units."""
     ring_thickness: float = 0.0
     """Fraction of the radius the ring extends inwards: radii uniform in
     [(1 - ring_thickness) poi_ring_radius, poi_ring_radius] (the lab's poi_init_thickness)."""
 
     def validate(self) -> None:
         super().validate()
-        self.check_positive("poi_ring_radius")
         self.check_unit("ring_thickness")
 
     def pois(self, rngs, n_pois):
@@ -221,9 +219,6 @@ class RingRandom(SpawnDisc):
         inner = (1.0 - self.ring_thickness) * self.poi_ring_radius
         radius = inner + (self.poi_ring_radius - inner) * u[..., 1]
         return np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=-1)
-
-    def poi_extent(self) -> float:
-        return self.poi_ring_radius
 
 
 @register_scenario
