@@ -275,59 +275,49 @@ def main() -> None:
             key=lambda r: f"{r.fields['method']} | {r.fields['n_req']} | {motion_label(r)}",
         )
 
+    def finished_runs(name: str) -> list[plots.Run]:
+        """The finished runs of sweep ``name`` under --root ([] if it is not there)."""
+        if not (root / name).exists():
+            return []
+        runs = [r for r in plots.load_runs(find_runs([root / name])) if len(r.eval_G)]
+        return [r for r in runs if _finished(r.path)]
+
+    def curves_and_finals(name: str, runs: list[plots.Run], curves: str | None, final: str):
+        """``NAME_curves_nreqN.png`` per n_req (titled ``curves`` + n_req; none if None) and
+        ``NAME_final_vs_nreq.png`` (titled ``final``), with their CSVs."""
+        if curves is not None:
+            for n_req in sorted({r.fields["n_req"] for r in runs}):
+                plots.plot_curves(
+                    plots.curve_table([r for r in runs if r.fields["n_req"] == n_req], smooth=20),
+                    OUT / f"{name}_curves_nreq{n_req}.png",
+                    f"{curves}, n_req = {n_req}",
+                )
+        plots.plot_final(
+            plots.final_table(runs, "n_req", last=args.last),
+            OUT / f"{name}_final_vs_nreq.png",
+            "n_req",
+            f"{final}: final score (last {args.last} generations)",
+        )
+
     # Issue 13: D++ as the feedback (experiment 1) and random POI layouts (experiment 2).
-    fig = root / "dpp"
-    if fig.exists():
-        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]
-        runs = [r for r in runs if _finished(r.path)]
+    runs = finished_runs("dpp")
+    if runs:
         for run in runs:
             run.group = f"{run.fields['method']} on {run.fields['feedback']}"
-        for n_req in sorted({r.fields["n_req"] for r in runs}):
-            subset = [r for r in runs if r.fields["n_req"] == n_req]
-            plots.plot_curves(
-                plots.curve_table(subset, smooth=20),
-                OUT / f"dpp_curves_nreq{n_req}.png",
-                f"D and the max critic on D or D++, n_req = {n_req} (20-generation mean)",
-            )
-        plots.plot_final(
-            plots.final_table(runs, "n_req", last=args.last),
-            OUT / "dpp_final_vs_nreq.png",
-            "n_req",
-            f"D++ vs D as the feedback: final score (last {args.last} generations)",
-        )
+        curves_and_finals("dpp", runs, "D and the max critic on D or D++",
+                          "D++ vs D as the feedback")  # fmt: skip
         summarise("dpp", runs, ("method", "feedback", "n_req"))
-    fig = root / "ring-random"
-    if fig.exists():
-        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]
-        runs = [r for r in runs if _finished(r.path)]
+    runs = finished_runs("ring-random")
+    if runs:
         regroup(runs, ())
-        for n_req in sorted({r.fields["n_req"] for r in runs}):
-            subset = [r for r in runs if r.fields["n_req"] == n_req]
-            plots.plot_curves(
-                plots.curve_table(subset, smooth=20),
-                OUT / f"ring-random_curves_nreq{n_req}.png",
-                f"random POI angles (one layout per generation), n_req = {n_req}",
-            )
-        plots.plot_final(
-            plots.final_table(runs, "n_req", last=args.last),
-            OUT / "ring-random_final_vs_nreq.png",
-            "n_req",
-            f"random POI layouts: final score (last {args.last} generations)",
-        )
+        curves_and_finals("ring-random", runs, "random POI angles (one layout per generation)",
+                          "random POI layouts")  # fmt: skip
         summarise("ring-random", runs, ("method", "n_req"))
-
     # Issue 16, part 3: the stronger-critic screen (compare with the ablation's paper row).
-    fig = root / "stronger-critic"
-    if fig.exists():
-        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]
-        runs = [r for r in runs if _finished(r.path)]
+    runs = finished_runs("stronger-critic")
+    if runs:
         regroup(runs, ("critic_step_input", "critic_top_k"))
-        plots.plot_final(
-            plots.final_table(runs, "n_req", last=args.last),
-            OUT / "stronger-critic_final_vs_nreq.png",
-            "n_req",
-            f"max critic variants: final score (last {args.last} generations)",
-        )
+        curves_and_finals("stronger-critic", runs, None, "max critic variants")
         summarise("stronger-critic", runs, ("critic_step_input", "critic_top_k", "n_req"))
 
     if (root / "ablation").exists():
