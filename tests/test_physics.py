@@ -200,14 +200,20 @@ def test_check_env_and_vector_equivalence_under_physics():
 def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone():
     # Regression: with a static shape in the space, pymunk.batch also reads and writes the
     # static body, which crashed every step with walls (0.1.0) and would move the walls.
-    env = RoverVectorEnv(2, motion="physics", walls=True, wall_half_size=5.0)
+    # 12 teams (seeds 0-11): 6 drive straight at full speed with a constant turn, 6 with
+    # random commands, so rovers meet the walls at many angles and in crowds.
+    env = RoverVectorEnv(12, motion="physics", walls=True, wall_half_size=5.0)
     env.reset(seed=0)
+    rng = np.random.default_rng(0)
     for _ in range(50):
-        env.step(np.tile([1.0, 0.3], (2, 15, 1)))
+        actions = np.tile([1.0, 0.3], (12, 15, 1))
+        actions[6:] = rng.uniform(-1.0, 1.0, (6, 15, 2))
+        env.step(actions)
     world = env.world
     # No rover escapes (centres inside the square; crowds pushed against a wall overlap it by
     # up to ~0.2 units, pymunk's contacts); before the fix they never got a step in.
-    assert 4.5 < np.abs(world.position_history).max() < 5.0
+    reach = np.abs(world.position_history).max(axis=(0, 2, 3))  # (E,): each team's farthest
+    assert reach.max() < 5.0 and reach[:6].min() > 4.5
     assert tuple(world.dynamics.space.static_body.position) == (0.0, 0.0)
 
 
