@@ -14,10 +14,15 @@ def jit(fn):
 
     No ``fastmath``: the kernel keeps IEEE semantics (no reassociation, no fused
     multiply-adds), so its results do not depend on the CPU's vector width.
+
+    ``error_model="numpy"``: a float division by zero gives inf or NaN as in numpy, instead
+    of Python's ZeroDivisionError. The kernels never divide by zero (their divisors are
+    bounded away from it, e.g. by ``d_min``), and the check Python's model adds to every
+    division is a branch that stops the compiler vectorising the loop around it.
     """
     import numba
 
-    return numba.njit(cache=True, nogil=True)(fn)
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
 def jit_reassoc(fn):
@@ -26,7 +31,7 @@ def jit_reassoc(fn):
     on a machine; their last bits depend on its vector width."""
     import numba
 
-    return numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(fn)
+    return numba.njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc"})(fn)
 
 
 def dims(n: int) -> tuple[int, ...]:

@@ -67,11 +67,15 @@ def heading_trig(headings, cos_h, sin_h):
 
 
 @jit
-def _move(cos_h, sin_h, heading, fwd, left):
+def _move(cos_h, sin_h, heading, fwd, left, headings):
     """One rover's idealised move: the world-frame displacement (mx, my) of the command
-    (fwd, left) and the new heading (its direction; the old one for a zero command)."""
+    (fwd, left) and the new heading (its direction; the old one for a zero command), or NaN
+    unless ``headings`` (nothing under idealised motion reads the angle: it moves and senses
+    with the heading's cosine and sine, and libm's atan2 is a sixth of a world step)."""
     mx = cos_h * fwd - sin_h * left
     my = sin_h * fwd + cos_h * left
+    if not headings:
+        return mx, my, np.nan
     new_heading = math.atan2(my, mx) if (fwd != 0.0 or left != 0.0) else heading
     return mx, my, new_heading
 
@@ -89,28 +93,114 @@ def sector(forward: float, left: float, n_sectors: int) -> int:
     return q if q < n_sectors else 0
 
 
+PAD = 16
+"""The quadrant sensor's loops over a team's rovers run over a multiple of this many lanes
+(LLVM vectorises them 4 doubles x 4 interleaved; a remainder would run scalar)."""
+
+
 @jit
-def _sense_team(e, state, d_min_sq, sectors, radius_sq, obs, acc):
+def sense_scratch(n_rovers, sectors):
+    """Scratch of :func:`sense_team`: (4 + 2 n_sectors, width) float64, rows the rovers' x, y,
+    cos and sin (padded lanes: a rover at the origin facing +x, never read back) and the
+    channels' sums, ``width`` >= R a multiple of :data:`PAD` (and >= 2 n_sectors)."""
+    n_sectors = len(sectors)
+    width = max(-(-n_rovers // PAD) * PAD, 2 * n_sectors)
+    scratch = np.zeros((4 + 2 * n_sectors, width))
+    scratch[2, :] = 1.0
+    return scratch
+
+
+@jit
+def _sense_quadrants(e, state, d_min_sq, radius_sq, obs, scratch):
+    """Eqs. 14-16 in four quadrants for the rovers of team ``e``, vectorised over the
+    observing rovers: for each object (rovers by index, then POIs) every rover's four
+    channel sums get the object's term or +0.0 (the same sums, in the same order, as adding
+    it to its one channel; an unseen object or the rover itself adds +0.0 everywhere)."""
+    positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
+    poi_positions, poi_values = state.poi_positions, state.poi_values
+    n_rovers = cos_h.shape[1]
+    n_pois = poi_positions.shape[1]
+    width = scratch.shape[1]
+    px, py, cs, sn = scratch[0], scratch[1], scratch[2], scratch[3]
+    r0, r1, r2, r3 = scratch[4], scratch[5], scratch[6], scratch[7]  # Eq. 15 by quadrant
+    p0, p1, p2, p3 = scratch[8], scratch[9], scratch[10], scratch[11]  # Eq. 16 by quadrant
+    for i in range(n_rovers):
+        px[i] = positions[e, i, 0]
+        py[i] = positions[e, i, 1]
+        cs[i] = cos_h[e, i]
+        sn[i] = sin_h[e, i]
+    for i in range(width):
+        r0[i] = r1[i] = r2[i] = r3[i] = p0[i] = p1[i] = p2[i] = p3[i] = 0.0
+    for j in range(n_rovers):  # the other rovers, numerator 1
+        xj = positions[e, j, 0]
+        yj = positions[e, j, 1]
+        for i in range(width):
+            dx = xj - px[i]
+            dy = yj - py[i]
+            dist_sq = dx * dx + dy * dy
+            w = 1.0 / max(dist_sq, d_min_sq)  # Eq. 14
+            if radius_sq is not None:
+                w = w if dist_sq <= radius_sq else 0.0
+            w = w if i != j else 0.0
+            q = quadrant(cs[i] * dx + sn[i] * dy, cs[i] * dy - sn[i] * dx)
+            r0[i] += w if q == 0 else 0.0
+            r1[i] += w if q == 1 else 0.0
+            r2[i] += w if q == 2 else 0.0
+            r3[i] += w if q == 3 else 0.0
+    for k in range(n_pois):  # the POIs, numerator V_k
+        xk = poi_positions[e, k, 0]
+        yk = poi_positions[e, k, 1]
+        value = poi_values[e, k]
+        for i in range(width):
+            dx = xk - px[i]
+            dy = yk - py[i]
+            dist_sq = dx * dx + dy * dy
+            w = value / max(dist_sq, d_min_sq)
+            if radius_sq is not None:
+                w = w if dist_sq <= radius_sq else 0.0
+            q = quadrant(cs[i] * dx + sn[i] * dy, cs[i] * dy - sn[i] * dx)
+            p0[i] += w if q == 0 else 0.0
+            p1[i] += w if q == 1 else 0.0
+            p2[i] += w if q == 2 else 0.0
+            p3[i] += w if q == 3 else 0.0
+    for i in range(n_rovers):
+        obs[e, i, 0] = r0[i]
+        obs[e, i, 1] = r1[i]
+        obs[e, i, 2] = r2[i]
+        obs[e, i, 3] = r3[i]
+        obs[e, i, 4] = p0[i]
+        obs[e, i, 5] = p1[i]
+        obs[e, i, 6] = p2[i]
+        obs[e, i, 7] = p3[i]
+
+
+@jit
+def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
     """Eqs. 14-16 for the rovers of team ``e`` in ``len(sectors)`` sectors: ``obs[e]``
     (R, 2 n_sectors) from ``state``, objects farther than ``sqrt(radius_sq)`` unseen (None:
-    none); ``acc`` is (2 n_sectors,) float64 scratch. Each channel adds its terms object by
+    none); ``scratch`` from :func:`sense_scratch`. Each channel adds its terms object by
     object (rovers by index, then POIs).
 
     ``sectors`` is a tuple of n zeros (:func:`physrover.compiled.dims`) and ``radius_sq``
     may be None: the compiler then knows the sector count and whether there is a radius,
     and compiles the paper's sensor (4 sectors, no radius) as if it were written alone.
+    Four sectors take the vectorised :func:`_sense_quadrants`; others the loop below.
     """
     n_sectors = len(sectors)
+    if n_sectors == 4:
+        _sense_quadrants(e, state, d_min_sq, radius_sq, obs, scratch)
+        return
     positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
     poi_positions, poi_values = state.poi_positions, state.poi_values
     n_rovers = cos_h.shape[1]
     n_pois = poi_positions.shape[1]
+    acc = scratch[4]  # by sector: Eq. 15 in 0 .. n-1, Eq. 16 in n .. 2n-1
     for i in range(n_rovers):
         c = cos_h[e, i]
         s = sin_h[e, i]
         xi = positions[e, i, 0]
         yi = positions[e, i, 1]
-        acc[:] = 0.0  # by sector: Eq. 15 in 0 .. n-1, Eq. 16 in n .. 2n-1
+        acc[:] = 0.0
         for j in range(n_rovers):  # the other rovers, numerator 1
             if j == i:
                 continue
@@ -120,8 +210,6 @@ def _sense_team(e, state, d_min_sq, sectors, radius_sq, obs, acc):
             if radius_sq is not None and dist_sq > radius_sq:  # beyond the radius
                 continue
             dist_sq = max(dist_sq, d_min_sq)  # Eq. 14
-            # An indexed add, not one select per quadrant: with real (changing) data the
-            # compiler's branches for selects mispredict and cost more than the whole sum.
             acc[sector(c * dx + s * dy, c * dy - s * dx, n_sectors)] += 1.0 / dist_sq
         for k in range(n_pois):  # the POIs, numerator V_k
             dx = poi_positions[e, k, 0] - xi
@@ -137,7 +225,7 @@ def _sense_team(e, state, d_min_sq, sectors, radius_sq, obs, acc):
 
 
 @jit
-def _score_team(e, state, d_cap_sq, n_req, t):
+def score_team(e, state, d_cap_sq, n_req, t):
     """Score step ``t`` of team ``e`` (Eqs. 11-13 and D's counterfactual captures) in
     ``state``'s scoring arrays; ``n_req`` (K,) int64 is each POI's coupling.
 
@@ -181,9 +269,9 @@ def sense(state, d_min, sectors, radius_sq, obs):
     sectors (a tuple of zeros, :func:`physrover.compiled.dims`), blind beyond
     ``sqrt(radius_sq)`` world units (None: sees everything): ``obs`` (E, R, 2 n_sectors)
     float32, written."""
-    acc = np.empty(2 * len(sectors))
+    scratch = sense_scratch(state.cos_h.shape[1], sectors)
     for e in range(state.cos_h.shape[0]):
-        _sense_team(e, state, d_min * d_min, sectors, radius_sq, obs, acc)
+        sense_team(e, state, d_min * d_min, sectors, radius_sq, obs, scratch)
 
 
 @jit
@@ -193,7 +281,7 @@ def score(state, d_cap, n_req, t):
     under each POI's coupling ``n_req`` (K,) int64, G so far (Eq. 11) and the captures
     without each rover (the counterfactual of D, Eq. 1)."""
     for e in range(state.cos_h.shape[0]):
-        _score_team(e, state, d_cap * d_cap, n_req, t)
+        score_team(e, state, d_cap * d_cap, n_req, t)
 
 
 @jit
@@ -202,26 +290,28 @@ def _clip(x):
 
 
 @jit
-def _move_team(e, commands, state, actions):
+def move_team(e, commands, state, actions, headings=True):
     """Move the rovers of team ``e`` by their clipped ``commands`` (recorded in ``actions``):
-    positions, headings and their cosines and sines in ``state``."""
-    positions, headings = state.rover_positions, state.rover_headings
+    positions, headings (NaN unless ``headings``, see :func:`_move`) and their cosines and
+    sines in ``state``."""
+    positions, angles = state.rover_positions, state.rover_headings
     cos_h, sin_h = state.cos_h, state.sin_h
-    for i in range(headings.shape[1]):
+    for i in range(angles.shape[1]):
         fwd = _clip(commands[e, i, 0])
         left = _clip(commands[e, i, 1])
         actions[e, i, 0] = fwd
         actions[e, i, 1] = left
-        mx, my, heading = _move(cos_h[e, i], sin_h[e, i], headings[e, i], fwd, left)
+        mx, my, heading = _move(cos_h[e, i], sin_h[e, i], angles[e, i], fwd, left, headings)
         positions[e, i, 0] += mx
         positions[e, i, 1] += my
-        headings[e, i] = heading
+        angles[e, i] = heading
         # The new heading's cosine and sine: the move's direction (the module docstring).
         norm = math.sqrt(mx * mx + my * my)
         if norm > 1e-100:
             cos_h[e, i] = mx / norm
             sin_h[e, i] = my / norm
         elif fwd != 0.0 or left != 0.0:  # a move so small that its square underflows
+            heading = math.atan2(my, mx)
             cos_h[e, i] = math.cos(heading)
             sin_h[e, i] = math.sin(heading)
 
@@ -244,7 +334,7 @@ def move(commands, state, actions):
     if _any_nan(commands):
         return False
     for e in range(commands.shape[0]):
-        _move_team(e, commands, state, actions)
+        move_team(e, commands, state, actions)
     return True
 
 
@@ -262,12 +352,12 @@ def ideal_step(commands, state, sensing, d_cap, n_req, t, scored, actions, posit
         return False
     n_teams, n_rovers = state.cos_h.shape
     d_min, sectors, radius_sq = sensing
-    acc = np.empty(2 * len(sectors))
+    scratch = sense_scratch(n_rovers, sectors)
     for e in range(n_teams):
-        _move_team(e, commands, state, actions)
-        _sense_team(e, state, d_min * d_min, sectors, radius_sq, obs, acc)
+        move_team(e, commands, state, actions)
+        sense_team(e, state, d_min * d_min, sectors, radius_sq, obs, scratch)
         if scored:
-            _score_team(e, state, d_cap * d_cap, n_req, t)
+            score_team(e, state, d_cap * d_cap, n_req, t)
         for i in range(n_rovers):
             positions[e, i, 0] = state.rover_positions[e, i, 0]
             positions[e, i, 1] = state.rover_positions[e, i, 1]

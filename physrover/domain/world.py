@@ -260,6 +260,24 @@ class RoverWorld:
             self.observations[t] = obs
         return obs
 
+    @property
+    def fused(self) -> bool:
+        """Whether the step is one compiled call (idealised motion, built-in sensor): what a
+        whole-episode kernel (:mod:`physrover.learn.rollout`) can compile around."""
+        return self._fused
+
+    @property
+    def sensing(self) -> tuple:
+        """The fused step's sensing arguments ``(d_min, sectors, radius_sq)``."""
+        if not self._fused:
+            raise AttributeError("only a fused world has compiled sensing arguments")
+        return self._sensing
+
+    @property
+    def scores_final_state(self) -> bool:
+        """Whether the state after the last step counts for captures (``scored_states``)."""
+        return self._scores_final_state
+
     def _scored(self, t: int) -> bool:
         """Whether state t counts for captures (``scored_states``: the final one may not)."""
         return t < self.config.steps or self._scores_final_state
