@@ -248,17 +248,24 @@ class RoverVectorEnv(VectorEnv):
             infos["_D"] = every
         return infos
 
-    def play_episode(self, policy) -> RoverWorld:
+    def play_episode(self, policy, headings: bool = True) -> RoverWorld:
         """One whole episode of every team under ``policy`` (``obs (E, R, n_obs) -> actions
         (E, R, 2)``), from a reset that continues the teams' generators, as ``reset()``
         then ``steps`` calls of ``step`` would play it, without building gymnasium's
-        per-step infos (the learners' fast path). Returns the world, at the episode's end;
-        the next ``step`` autoresets as after any last step."""
+        per-step infos (the learners' fast path). A policy with a ``play(world, obs,
+        headings)`` method plays the episode itself (a
+        :class:`~physrover.learn.rollout.TeamPolicy` compiles it into one call on a fused
+        world; ``headings=False`` lets it skip the heading angles). Returns the world, at
+        the episode's end; the next ``step`` autoresets as after any last step."""
         if self._rngs is None:
             raise RuntimeError("call reset(seed=...) first: the generators are made there")
         obs = self._reset_world(None)
-        for _ in range(self.config.steps):
-            obs = self.world.step(policy(obs))
+        play = getattr(policy, "play", None)
+        if play is not None:
+            play(self.world, obs, headings)
+        else:
+            for _ in range(self.config.steps):
+                obs = self.world.step(policy(obs))
         self._last_G = self.world.G
         self._needs_reset = True
         return self.world

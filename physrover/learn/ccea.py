@@ -110,7 +110,7 @@ class CCEA:
         if extra is not None:
             table = np.concatenate([table, extra], axis=1)
         policy = self.layout.prepare(table[rovers[None, :], genome_index])  # (E, R, P) genomes
-        world = self.env.play_episode(policy)
+        world = self.env.play_episode(policy, headings=False)  # the CCEA reads no angle
         return world.G.copy(), np.array(self.credit(world), dtype=np.float64)
 
     def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:

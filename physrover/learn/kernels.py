@@ -1,6 +1,7 @@
-"""Compiled kernels of the learner: the one implementation of the policy forward pass
-(paper Section 4.2), of the intermediate critics' values (Eq. 2) and of their updates,
-regular (Eqs. 6-8) and inexact (Eqs. 9-10), by SGD or Adam.
+"""Compiled kernels of the learner: the one implementation of the intermediate critics'
+values (Eq. 2) and of their updates, regular (Eqs. 6-8) and inexact (Eqs. 9-10), by SGD or
+Adam, and the gathering of their training pairs. (The policies' forward pass is
+:mod:`physrover.learn.forward`.)
 
 Sizes are the arrays' own: observations (n_in, from the sensor), actions (2, the domain's),
 critic inputs (n_in + 2) and hidden units. Arithmetic is float32. Loops run over whole rows
@@ -23,56 +24,6 @@ TILE = 16
 """Inputs per register tile of the critics' loops (see :func:`_critic_forward`)."""
 ADAM_BETA1, ADAM_BETA2, ADAM_EPS = 0.9, 0.999, 1e-8
 """Adam's constants (Kingma and Ba's defaults, as torch.optim.Adam)."""
-
-
-@jit
-def policy_forward(genomes, hidden, obs, out, dims):
-    """Actions of every rover of every team (the layout of ``PolicyLayout``).
-
-    Args:
-        genomes: (E, R, P) float32 genomes laid out ``W1 (n_in x H) | b1 | W2 (H x 2) | b2``.
-        hidden: H.
-        obs: (E, R, n_in) float32 observations.
-        out: (E, R, 2) float32, written with the pre-activations ``relu(obs W1 + b1) W2 + b2``;
-            the caller applies ``np.tanh`` (numpy's vectorised tanh is several times faster
-            than calling libm's per element here).
-        dims: a tuple of n_in zeros, ``compiled.dims``: its length, the observation size, is a
-            compile-time constant (one compiled version per sensor size, whose input loop
-            the compiler unrolls).
-    """
-    n_in = len(dims)
-    n_teams, n_rovers, _ = genomes.shape
-    b1_at = n_in * hidden
-    w2_at = b1_at + hidden
-    b2_at = w2_at + hidden * 2
-    whole = hidden - hidden % 4
-    h = np.empty(hidden, np.float32)
-    for e in range(n_teams):
-        for r in range(n_rovers):
-            g = genomes[e, r]
-            x = obs[e, r]
-            for u in range(hidden):
-                a = g[b1_at + u]
-                for i in range(n_in):
-                    a += x[i] * g[i * hidden + u]
-                h[u] = max(a, np.float32(0.0))
-            # Output sums in four interleaved partial sums (independent chains), then the rest.
-            p0 = p1 = p2 = p3 = q0 = q1 = q2 = q3 = np.float32(0.0)
-            for u in range(0, whole, 4):
-                w = w2_at + 2 * u
-                p0 += h[u] * g[w]
-                q0 += h[u] * g[w + 1]
-                p1 += h[u + 1] * g[w + 2]
-                q1 += h[u + 1] * g[w + 3]
-                p2 += h[u + 2] * g[w + 4]
-                q2 += h[u + 2] * g[w + 5]
-                p3 += h[u + 3] * g[w + 6]
-                q3 += h[u + 3] * g[w + 7]
-            for u in range(whole, hidden):
-                p0 += h[u] * g[w2_at + 2 * u]
-                q0 += h[u] * g[w2_at + 2 * u + 1]
-            out[e, r, 0] = g[b2_at] + ((p0 + p1) + (p2 + p3))
-            out[e, r, 1] = g[b2_at + 1] + ((q0 + q1) + (q2 + q3))
 
 
 @jit

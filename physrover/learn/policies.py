@@ -10,16 +10,19 @@ operations and a batch of teams is evaluated with two batched matrix products.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from physrover.learn.rollout import TeamPolicy
 
 
 class PolicyLayout:
     """Offsets of the weight blocks inside a genome of an ``n_in -> hidden -> n_out`` policy.
 
     ``n_in`` is the sensor's observation size (8 for the paper's), ``n_out`` the action size
-    (2); the compiled forward pass (:func:`physrover.learn.kernels.policy_forward`) takes
+    (2); the compiled forward pass (:func:`physrover.learn.forward.policy_forward`) takes
     any ``n_in`` and 2 outputs.
     """
 
@@ -42,25 +45,17 @@ class PolicyLayout:
             out[..., lo:hi] = rng.uniform(-bound, bound, (*shape, hi - lo))
         return out
 
-    def prepare(self, genomes: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-        """A function ``obs (E, R, n_in) -> actions (E, R, n_out)`` of fixed (E, R, P)
-        genomes, for the steps of an episode (the genomes are laid out once)."""
-        from physrover.compiled import dims
-        from physrover.learn.kernels import policy_forward
+    def prepare(self, genomes: np.ndarray) -> TeamPolicy:
+        """The policy ``obs (E, R, n_in) -> actions (E, R, n_out)`` of fixed (E, R, P)
+        genomes, for the steps of an episode (the genomes are laid out once); a
+        :class:`~physrover.learn.rollout.TeamPolicy`, which a fused world plays as one
+        compiled episode."""
+        from physrover.learn.rollout import TeamPolicy
 
-        genomes = np.ascontiguousarray(genomes, dtype=np.float32)
+        genomes = np.asarray(genomes)
         if genomes.shape[-1] != self.size:
             raise ValueError(f"genomes must have {self.size} parameters, got {genomes.shape[-1]}")
-
-        def act(obs: np.ndarray) -> np.ndarray:
-            obs = np.asarray(obs, dtype=np.float32)
-            if obs.shape[-1] != self.n_in:
-                raise ValueError(f"observations must have {self.n_in} inputs, got {obs.shape}")
-            out = np.empty((*genomes.shape[:-1], self.n_out), dtype=np.float32)
-            policy_forward(genomes, self.hidden, obs, out, dims(self.n_in))
-            return np.tanh(out, out=out)
-
-        return act
+        return TeamPolicy(genomes, self.hidden, self.n_in)
 
     def act(self, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """Actions of every rover of every team.

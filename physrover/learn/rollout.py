@@ -1,0 +1,127 @@
+"""Whole episodes of policy teams: the learners' hot path.
+
+:func:`play_episode` plays one episode of every team of a world under a :class:`TeamPolicy`
+(one genome per rover of each team). Under idealised motion with the built-in sensor (the
+world's fused step) the whole episode is one compiled call, :func:`ideal_episode`: for each
+team, every step's policy forward pass (:func:`~physrover.learn.forward.forward_team`), move,
+sense and score (the world step's own kernels, :mod:`physrover.domain.kernels`) and the
+records, team by team while the team's data is in cache. Otherwise (physical motion, custom
+parts) it steps the world, calling the policy's compiled forward pass in between.
+
+Both give the same results, bit for bit: the same kernels in the same order on the same
+numbers (``tests/test_rollout.py`` plays the same teams both ways, for every fitness method's
+use). The one difference: the fused episode may skip the heading angles (``headings=False``,
+what the CCEA asks for: nothing under idealised motion reads them, and libm's atan2 is a
+sixth of the world's step), which are then NaN in ``heading_history`` and the state.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from physrover.compiled import dims, jit
+from physrover.domain.kernels import move_team, score_team, sense_scratch, sense_team
+from physrover.domain.state import WorldState
+from physrover.domain.world import RoverWorld
+from physrover.learn.forward import forward_team, policy_forward
+
+
+class TeamPolicy:
+    """Fixed genomes for the rovers of E teams, as a policy ``obs (E, R, n_in) -> actions
+    (E, R, 2)`` (the per-step path) that :func:`play_episode` can also compile into the
+    episode.
+
+    Args:
+        genomes: (E, R, P) float32 genomes in the layout of
+            :class:`~physrover.learn.policies.PolicyLayout`.
+        hidden: H, the hidden units.
+        n_in: the observation size.
+    """
+
+    def __init__(self, genomes: np.ndarray, hidden: int, n_in: int):
+        self.genomes = np.ascontiguousarray(genomes, dtype=np.float32)
+        self.hidden, self.n_in = int(hidden), int(n_in)
+        self.dims = dims(self.n_in)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.ascontiguousarray(obs, dtype=np.float32)
+        if obs.shape[-1] != self.n_in:
+            raise ValueError(f"observations must have {self.n_in} inputs, got {obs.shape}")
+        out = np.empty((*self.genomes.shape[:-1], 2), dtype=np.float32)
+        policy_forward(self.genomes, self.hidden, obs, out, self.dims)
+        return out
+
+    def play(self, world: RoverWorld, obs: np.ndarray, headings: bool = True) -> None:
+        """:func:`play_episode` of this policy (what ``RoverVectorEnv.play_episode`` calls)."""
+        play_episode(world, obs, self, headings)
+
+
+@jit
+def ideal_episode(genomes, hidden, in_dims, d_min, sectors, radius_sq, d_cap, n_req, score_last,
+                  headings, observations, actions, position_history, heading_history,
+                  *state):  # fmt: skip
+    """Steps 1 .. T of an episode of every team (after the world's reset, which sensed and
+    scored step 0), the policies choosing the commands: for each team and step, the forward
+    pass of its rovers' ``genomes`` (E, R, P) on ``observations[t]``, the idealised move
+    (commands recorded in ``actions[t]``), sensing into ``observations[t + 1]`` (the last
+    step's into scratch), scoring of step t + 1 (the last one if ``score_last``), and the
+    rovers' positions and headings (NaN unless ``headings``) in the histories. The sensing
+    parameters are those of :func:`~physrover.domain.kernels.ideal_step`; ``*state`` is the
+    world's :class:`~physrover.domain.state.WorldState`, arrays one by one. Returns False
+    if a policy gives a NaN command (the world is then mid-episode: reset it).
+    """
+    st = WorldState(*state)
+    n_teams, n_rovers = st.cos_h.shape
+    steps = observations.shape[0]
+    h = np.empty(hidden, np.float32)
+    commands = np.empty((n_teams, n_rovers, 2), np.float32)
+    last_obs = np.empty((n_teams, n_rovers, observations.shape[3]), np.float32)
+    scratch = sense_scratch(n_rovers, sectors)
+    d_min_sq, d_cap_sq = d_min * d_min, d_cap * d_cap
+    for e in range(n_teams):
+        for t in range(steps):
+            forward_team(genomes[e], hidden, observations[t, e], commands[e], in_dims, h)
+            for i in range(n_rovers):
+                if np.isnan(commands[e, i, 0]) or np.isnan(commands[e, i, 1]):
+                    return False
+            move_team(e, commands, st, actions[t], headings)
+            obs = observations[t + 1] if t + 1 < steps else last_obs
+            sense_team(e, st, d_min_sq, sectors, radius_sq, obs, scratch)
+            if t + 1 < steps or score_last:
+                score_team(e, st, d_cap_sq, n_req, t + 1)
+            for i in range(n_rovers):
+                position_history[t + 1, e, i, 0] = st.rover_positions[e, i, 0]
+                position_history[t + 1, e, i, 1] = st.rover_positions[e, i, 1]
+                heading_history[t + 1, e, i] = st.rover_headings[e, i]
+    return True
+
+
+def play_episode(world: RoverWorld, obs: np.ndarray, policy, headings: bool = True) -> None:
+    """Play the episode of a just reset ``world`` (its observations ``obs``) under
+    ``policy`` to its end: one compiled call if the world's step is fused and ``policy`` is
+    a :class:`TeamPolicy`, else a step loop calling ``policy(obs)``. ``headings=False`` lets
+    the compiled episode skip the heading angles (module docstring). The world ends at its
+    last step (``world.done``), its records filled as by ``steps`` calls of ``world.step``.
+    """
+    if world.t != 0:
+        raise RuntimeError(f"play_episode starts from a reset world, not from step {world.t}")
+    if not (world.fused and isinstance(policy, TeamPolicy)):
+        for _ in range(world.config.steps):
+            obs = world.step(policy(obs))
+        return
+    if policy.genomes.shape[:2] != (world.n_teams, world.n_rovers):
+        raise ValueError(
+            f"genomes must be for {world.n_teams} teams of {world.n_rovers} rovers, "
+            f"got shape {policy.genomes.shape}"
+        )
+    if policy.n_in != world.obs_dim:
+        raise ValueError(f"policies take {policy.n_in} inputs, the sensor gives {world.obs_dim}")
+    cfg = world.config
+    ok = ideal_episode(
+        policy.genomes, policy.hidden, policy.dims, *world.sensing, cfg.d_cap, world.n_req,
+        world.scores_final_state, bool(headings), world.observations, world.actions,
+        world.position_history, world.heading_history, *world.state,
+    )  # fmt: skip
+    world.t = cfg.steps
+    if not ok:
+        raise ValueError("actions contain NaN")
