@@ -4,9 +4,51 @@ The compiled kernels are the one implementation of the hot equations (the world 
 policies' forward pass, the critics' values and updates). They compile on first use (5-10 s)
 and numba caches them on disk, so later processes load them. ``NUMBA_DISABLE_JIT=1`` runs
 them as plain Python, for debugging with a debugger or prints (slow, but the same results).
+
+The on-disk cache lives in ``~/.cache/physrover/numba-KEY`` (under ``$XDG_CACHE_HOME`` or
+``$NUMBA_CACHE_DIR`` if set), KEY a hash of every source file of the package. numba checks
+only a kernel's own file when it loads it from its cache, not the files of the kernels it
+calls: a kernel calling one from another module whose signature or body changed would load
+stale machine code (this happened: a test suite passed on a cache that a clean clone
+failed). Any change to the package's sources now compiles everything afresh once.
 """
 
 from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+_PACKAGE = Path(__file__).parent
+_cache_configured = False
+
+
+def sources_key(root: Path = _PACKAGE) -> str:
+    """A hash of the paths and contents of every ``*.py`` file under ``root``."""
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def cache_dir() -> str:
+    """Where this version of the package's kernels are cached (module docstring)."""
+    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "physrover"
+    )
+    return os.path.join(base, f"numba-{sources_key()}")
+
+
+def _numba():
+    """numba, its cache directory set to :func:`cache_dir` before the first kernel."""
+    global _cache_configured
+    import numba
+
+    if not _cache_configured:
+        numba.config.CACHE_DIR = cache_dir()
+        _cache_configured = True
+    return numba
 
 
 def jit(fn):
@@ -20,18 +62,14 @@ def jit(fn):
     bounded away from it, e.g. by ``d_min``), and the check Python's model adds to every
     division is a branch that stops the compiler vectorising the loop around it.
     """
-    import numba
-
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+    return _numba().njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
 def jit_reassoc(fn):
     """As :func:`jit`, but the compiler may reassociate floating-point sums (``fastmath``
     flag ``reassoc`` only), which lets it vectorise reductions. Results stay deterministic
     on a machine; their last bits depend on its vector width."""
-    import numba
-
-    return numba.njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc"})(fn)
+    return _numba().njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc"})(fn)
 
 
 def dims(n: int) -> tuple[int, ...]:

@@ -105,3 +105,19 @@ def test_layers_cover_every_module():
     for module in _imports():
         if module.split(".")[-1] != PACKAGE_INIT:
             _layer(module)
+
+
+def test_the_kernel_cache_is_keyed_by_every_source_file(tmp_path, monkeypatch):
+    """numba checks only a kernel's own file against its cache: a change anywhere in the
+    package must move the cache to a new directory (physrover.compiled)."""
+    from physrover import compiled
+
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    before = compiled.sources_key(tmp_path)
+    assert compiled.sources_key(tmp_path) == before
+    (tmp_path / "sub" / "b.py").write_text("y = 3\n")
+    assert compiled.sources_key(tmp_path) != before
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    assert compiled.cache_dir() == str(tmp_path / "cache" / f"numba-{compiled.sources_key()}")

@@ -40,7 +40,7 @@ def setpoints(actions, headings, max_speed, target_v, target_heading):
         for i in range(headings.shape[1]):
             h = headings[e, i]
             mx, my, new_heading = _move(math.cos(h), math.sin(h), h, actions[e, i, 0],
-                                        actions[e, i, 1])  # fmt: skip
+                                        actions[e, i, 1], True)  # fmt: skip
             if max_speed is not None:  # compiled out without a speed limit
                 speed = math.hypot(mx, my)
                 if speed > max_speed[i]:
