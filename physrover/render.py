@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from physrover.config import ConfigBase, DomainConfig, check
+from physrover.domain.obstacles import box_corners
 from physrover.video import VideoError, VideoWriter
 
 BACKGROUND = (246, 246, 246)  # BGR
@@ -247,6 +248,22 @@ def _draw_clump_inset(img, now, headings, tf: Transform, domain: DomainConfig) -
     img[INSET_GAP : INSET_GAP + size, x0 : x0 + size] = canvas
 
 
+def _draw_obstacles(img: np.ndarray, tf: Transform, scenario) -> None:
+    """The scenario's static discs, boxes and segments, filled, to scale."""
+    aa = cv2.LINE_AA
+    for x, y, r in scenario.obstacles():
+        centre = _pt(tf(np.array([[x, y]]))[0])
+        cv2.circle(img, centre, max(1, int(round(tf.scale * r))), OBSTACLE, -1, aa)
+    for box in scenario.boxes():
+        corners = np.round(tf(box_corners(box))).astype(np.int32)
+        cv2.fillPoly(img, [corners], OBSTACLE, aa)
+    for ax, ay, bx, by, r in scenario.segments():
+        a, b = (_pt(p) for p in tf(np.array([[ax, ay], [bx, by]])))
+        cv2.line(img, a, b, OBSTACLE, max(1, int(round(2.0 * tf.scale * r))), aa)
+        for end in (a, b):  # round ends
+            cv2.circle(img, end, max(1, int(round(tf.scale * r))), OBSTACLE, -1, aa)
+
+
 def draw_frame(
     state: FrameState,
     domain: DomainConfig,
@@ -259,9 +276,7 @@ def draw_frame(
     img = np.empty((render.height, render.width, 3), dtype=np.uint8)
     img[:] = BACKGROUND
     aa = cv2.LINE_AA
-    for x, y, r in domain.scenario.obstacles():  # static discs, under everything else
-        centre = _pt(tf(np.array([[x, y]]))[0])
-        cv2.circle(img, centre, max(1, int(round(tf.scale * r))), OBSTACLE, -1, aa)
+    _draw_obstacles(img, tf, domain.scenario)  # under everything else
     # POIs: capture ring and a disc sized by value; then the rovers: trails and bodies.
     vmax, ring_px = float(np.max(state.poi_values)), max(1, int(tf.scale * domain.d_cap))
     centres = [_pt(p) for p in tf(state.poi_positions)]

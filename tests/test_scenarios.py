@@ -153,7 +153,7 @@ def test_obstacles_stop_physical_rovers_and_are_an_error_under_ideal_motion():
     with pytest.raises(ConfigError, match="motion: 'ideal' motion cannot hold the scenario's"):
         _world(scenario, **fields)
     world = _world(scenario, n_teams=3, motion="physics", **fields)
-    np.testing.assert_array_equal(world.state.obstacles, [[[4.0, 0.0, 1.0]]] * 3)
+    np.testing.assert_array_equal(world.state.obstacles, [[[4.0, 0.0, 4.0, 0.0, 1.0]]] * 3)
     world.reset([np.random.default_rng(e) for e in range(3)])
     for _ in range(12):
         world.step(np.tile([1.0, 0.0], (3, 1, 1)))

@@ -200,7 +200,7 @@ class DomainConfig(ConfigBase):
         self.scenario.check_domain(self)
         check(
             getattr(DYNAMICS[self.motion], "obstacles", False)
-            or len(self.scenario.obstacles()) == 0,
+            or len(self.scenario.obstacle_capsules()) == 0,
             "motion",
             f"{self.motion!r} motion cannot hold the scenario's obstacles (the paper's "
             'kinematics has none); use motion = "physics" or a scenario without obstacles',

@@ -36,12 +36,12 @@ reach full speed, and its speed never exceeds the command (the velocity moves al
 segment towards ``v*``).
 
 Collisions between rovers of a team are switched by ``collisions`` (shape filters, not
-callbacks). The scenario's obstacles (static discs) and the walls collide with every rover;
-a speculative pass stops rovers closing into an obstacle as for rover pairs (below), so a
-full-speed hit ends a step within Chipmunk's slop of the disc (walls rely on pymunk's
-contacts alone: a crowd pushed against a wall may overlap it by up to ~0.2 units).
-Chipmunk detects contacts between
-discrete positions, so rovers closing at more
+callbacks). The scenario's obstacles (static discs, boxes and segments,
+:mod:`physrover.domain.obstacles`) and the walls collide with every rover; a speculative
+pass against the obstacles' capsules stops rovers closing into one as for rover pairs
+(below), so a full-speed hit ends a step within Chipmunk's slop of it (walls rely on
+pymunk's contacts alone: a crowd pushed against a wall may overlap it by up to ~0.2 units).
+Chipmunk detects contacts between discrete positions, so rovers closing at more
 than a diameter per physics step would pass through each other; before every physics step a
 compiled speculative-contact pass (:func:`physrover.domain.kernels.speculative_contacts`)
 removes the closing speed that would carry a pair into overlap, so contacts hold at any
@@ -70,6 +70,7 @@ import pymunk.batch as pb
 from physrover.config import DomainConfig
 from physrover.domain.dynamics import Dynamics, register_dynamics
 from physrover.domain.kernels import heading_trig
+from physrover.domain.obstacles import box_corners
 from physrover.domain.physics_kernels import (
     control,
     setpoints,
@@ -191,12 +192,13 @@ class PhysicsMotion(Dynamics):
         if config.physics.walls:
             space.add(*self._walls(space.static_body))
         space.add(*self._obstacles(space.static_body))
-        # (E, M, 3) the obstacles in the space's frame, for the speculative pass
-        discs = config.scenario.obstacles()
-        self.discs = None
-        if len(discs):
-            self.discs = np.repeat(discs[None], n_teams, axis=0)
-            self.discs[..., :2] += self.offsets
+        # (E, M, 5) the obstacles' capsules in the space's frame, for the speculative pass
+        capsules = config.scenario.obstacle_capsules()
+        self.capsules = None
+        if len(capsules):
+            self.capsules = np.repeat(capsules[None], n_teams, axis=0)
+            self.capsules[..., 0:2] += self.offsets
+            self.capsules[..., 2:4] += self.offsets
         self._static_shapes = bool(space.static_body.shapes)
         self.space = space
         self._buffer = pb.Buffer()
@@ -231,17 +233,25 @@ class PhysicsMotion(Dynamics):
                 walls.append(seg)
         return walls
 
-    def _obstacles(self, static_body: pymunk.Body) -> list[pymunk.Circle]:
-        """The scenario's static discs in every team's cell; rovers collide with them."""
+    def _obstacles(self, static_body: pymunk.Body) -> list[pymunk.Shape]:
+        """The scenario's static discs, boxes and segments in every team's cell; rovers
+        collide with them."""
         obstacle_filter = pymunk.ShapeFilter(categories=_WALL, mask=_ROVER)
+        scenario = self.config.scenario
         shapes = []
         for ox, oy in self.offsets.reshape(-1, 2):
-            for x, y, r in self.config.scenario.obstacles():
-                disc = pymunk.Circle(static_body, r, (ox + x, oy + y))
-                disc.filter = obstacle_filter
-                disc.elasticity = 0.0
-                disc.friction = 0.0
-                shapes.append(disc)
+            for x, y, r in scenario.obstacles():
+                shapes.append(pymunk.Circle(static_body, r, (ox + x, oy + y)))
+            for box in scenario.boxes():
+                corners = [(ox + x, oy + y) for x, y in box_corners(box)]
+                shapes.append(pymunk.Poly(static_body, corners))
+            for ax, ay, bx, by, r in scenario.segments():
+                shapes.append(pymunk.Segment(static_body, (ox + ax, oy + ay),
+                                             (ox + bx, oy + by), r))  # fmt: skip
+        for shape in shapes:
+            shape.filter = obstacle_filter
+            shape.elasticity = 0.0
+            shape.friction = 0.0
         return shapes
 
     # -- batch I/O ---------------------------------------------------------------------------
@@ -325,9 +335,9 @@ class PhysicsMotion(Dynamics):
             if cfg.physics.collisions:  # no pair may end this physics step passed into another
                 speculative_contacts(s[..., 0:2], out[..., 0:2], self.contact, self.mass, dt,
                                      self.space.collision_slop, 4)  # fmt: skip
-            if self.discs is not None:  # nor into an obstacle
-                speculative_obstacles(s[..., 0:2], out[..., 0:2], self.radius, self.discs, dt,
-                                      self.space.collision_slop)  # fmt: skip
+            if self.capsules is not None:  # nor into an obstacle
+                speculative_obstacles(s[..., 0:2], out[..., 0:2], self.radius, self.capsules,
+                                      dt, self.space.collision_slop)  # fmt: skip
             self._set(_MOTION | _FORCES, out)
             self.space.step(dt)
         s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w

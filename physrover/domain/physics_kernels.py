@@ -155,12 +155,14 @@ def speculative_contacts(positions, velocities, contact, mass, dt, allowance, it
 
 
 @jit
-def speculative_obstacles(positions, velocities, radius, discs, dt, allowance):
-    """Stop rovers from passing into the static discs ``discs`` (E, M, 3: x, y, radius, in
-    the positions' frame) within one physics step, in place: for rover i and disc o with
-    centre distance d, normal n (rover to disc) and approach speed u = v_i . n, the excess
-    ``u - (d - r_i - r_o + allowance) / dt`` is removed from the rover's velocity along n
-    (the disc does not move). As :func:`speculative_contacts` for rover pairs.
+def speculative_obstacles(positions, velocities, radius, capsules, dt, allowance):
+    """Stop rovers from passing into the static obstacles ``capsules`` (E, M, 5: segments
+    A-B thickened by a radius, in the positions' frame; :mod:`physrover.domain.obstacles`)
+    within one physics step, in place: for rover i and capsule o, with C the point of A-B
+    nearest the rover, d its distance, n the normal (rover to C) and u = v_i . n the
+    approach speed, the excess ``u - (d - r_i - r_o + allowance) / dt`` is removed from the
+    rover's velocity along n (the obstacle does not move). As :func:`speculative_contacts`
+    for rover pairs; for a disc (A = B), C is its centre.
 
     Args:
         positions: (E, R, 2) centres at the start of the physics step.
@@ -170,15 +172,22 @@ def speculative_obstacles(positions, velocities, radius, discs, dt, allowance):
     """
     for e in range(positions.shape[0]):
         for i in range(positions.shape[1]):
-            for o in range(discs.shape[1]):
-                dx = discs[e, o, 0] - positions[e, i, 0]
-                dy = discs[e, o, 1] - positions[e, i, 1]
+            px, py = positions[e, i, 0], positions[e, i, 1]
+            for o in range(capsules.shape[1]):
+                ax, ay = capsules[e, o, 0], capsules[e, o, 1]
+                abx, aby = capsules[e, o, 2] - ax, capsules[e, o, 3] - ay
+                length_sq = abx * abx + aby * aby
+                t = 0.0
+                if length_sq > 0.0:
+                    t = min(max(((px - ax) * abx + (py - ay) * aby) / length_sq, 0.0), 1.0)
+                dx = (ax + t * abx) - px
+                dy = (ay + t * aby) - py
                 d = math.sqrt(dx * dx + dy * dy)
                 if d < 1e-12:
                     continue
                 nx, ny = dx / d, dy / d
                 u = velocities[e, i, 0] * nx + velocities[e, i, 1] * ny
-                limit = (d - radius[i] - discs[e, o, 2] + allowance) / dt
+                limit = (d - radius[i] - capsules[e, o, 4] + allowance) / dt
                 if u > limit:
                     velocities[e, i, 0] -= (u - limit) * nx
                     velocities[e, i, 1] -= (u - limit) * ny

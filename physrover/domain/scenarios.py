@@ -12,7 +12,7 @@ A scenario is a frozen dataclass whose fields are its parameters (the ``[scenari
   ``min_separation`` apart; rovers as ``ring``;
 - ``explicit``: POI positions listed in the table (values are [domain] ``poi_values``),
   optionally the rovers' positions and headings (else drawn as ``ring``) and static
-  obstacles (discs).
+  obstacles (discs, boxes, segments: :mod:`physrover.domain.obstacles`).
 
 Redraws (``redraw``, every scenario):
 
@@ -47,6 +47,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from physrover.config import Component, check, check_choice
+from physrover.domain.obstacles import capsules, check_obstacles, reach
 from physrover.registry import SCENARIOS
 
 
@@ -113,8 +114,23 @@ class Scenario(Component):
         """(M, 3) static discs ``[x, y, radius]`` in world units, the same in every episode
         and team (by default none). The physical model makes them static bodies that rovers
         collide with; under the idealised kinematics (the paper's, which has none) they are a
-        config error; sensors find them in ``WorldState.obstacles``."""
+        config error; sensors find them in ``WorldState.obstacles``
+        (:mod:`physrover.domain.obstacles`)."""
         return np.zeros((0, 3))
+
+    def boxes(self) -> np.ndarray:
+        """(B, 5) static boxes ``[x, y, half_width, half_height, angle]`` (world units,
+        radians), as :meth:`obstacles` (by default none)."""
+        return np.zeros((0, 5))
+
+    def segments(self) -> np.ndarray:
+        """(S, 5) static segments ``[ax, ay, bx, by, radius]`` (walls of thickness
+        2 radius with round ends, world units), as :meth:`obstacles` (by default none)."""
+        return np.zeros((0, 5))
+
+    def obstacle_capsules(self) -> np.ndarray:
+        """(M, 5) every obstacle as capsules (:func:`physrover.domain.obstacles.capsules`)."""
+        return capsules(self.obstacles(), self.boxes(), self.segments())
 
 
 def register_scenario(cls: type[Scenario], *, replace: bool = False) -> type[Scenario]:
@@ -299,7 +315,11 @@ class Explicit(Scenario):
     spawn_radius: float = 1.5
     """The spawn disc's radius when rover_positions is empty, world units."""
     obstacle_discs: tuple[tuple[float, ...], ...] = ()
-    """[[x, y, radius], ...] static obstacles, world units (physical motion only)."""
+    """[[x, y, radius], ...] static discs, world units (physical motion only)."""
+    obstacle_boxes: tuple[tuple[float, ...], ...] = ()
+    """[[x, y, half_width, half_height, angle], ...] static boxes, world units and radians."""
+    obstacle_segments: tuple[tuple[float, ...], ...] = ()
+    """[[ax, ay, bx, by, radius], ...] static segments (walls 2 radius thick), world units."""
 
     def validate(self) -> None:
         self.check_positive("spawn_radius")
@@ -308,12 +328,16 @@ class Explicit(Scenario):
                 check(len(p) == 2 and all(np.isfinite(p)), name,
                       f"every position must be a finite [x, y], got {list(p)}")  # fmt: skip
         check(all(np.isfinite(self.rover_headings)), "rover_headings", "must be finite")
-        for disc in self.obstacle_discs:
-            ok = len(disc) == 3 and all(np.isfinite(disc)) and disc[2] > 0
-            check(ok, "obstacle_discs", f"every obstacle is [x, y, radius > 0], got {list(disc)}")
+        check_obstacles(self.obstacle_discs, self.obstacle_boxes, self.obstacle_segments, check)
 
     def obstacles(self) -> np.ndarray:
         return np.array(self.obstacle_discs, dtype=np.float64).reshape(-1, 3)
+
+    def boxes(self) -> np.ndarray:
+        return np.array(self.obstacle_boxes, dtype=np.float64).reshape(-1, 5)
+
+    def segments(self) -> np.ndarray:
+        return np.array(self.obstacle_segments, dtype=np.float64).reshape(-1, 5)
 
     def check_domain(self, domain) -> None:
         check(
@@ -338,8 +362,8 @@ class Explicit(Scenario):
 
     def extent(self) -> float:
         points = [*self.poi_positions, *self.rover_positions]
-        reach = [float(np.hypot(x, y) + r) for x, y, r in self.obstacle_discs]
-        return max([self.spawn_radius, *(float(np.hypot(*p)) for p in points), *reach])
+        far = reach(self.obstacles(), self.boxes(), self.segments())
+        return max([self.spawn_radius, *(float(np.hypot(*p)) for p in points), far])
 
 
 __all__ = ["Explicit", "REDRAWS", "Ring", "RingRandom", "Scenario", "SpawnDisc", "StartState",

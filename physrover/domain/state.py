@@ -42,7 +42,9 @@ class WorldState(NamedTuple):
     poi_values: np.ndarray
     """(E, K) float64, positive."""
     obstacles: np.ndarray
-    """(E, M, 3) float64: static discs ``[x, y, radius]`` of the scenario, world units."""
+    """(E, M, 5) float64: the scenario's static obstacles as capsules ``[ax, ay, bx, by,
+    radius]`` (a disc has A = B; a box is its four edges), world units
+    (:mod:`physrover.domain.obstacles`)."""
     poi_counts: np.ndarray
     """(E, K) int64: rovers within d_cap of each POI at the latest scored step (Eq. 13)."""
     in_range: np.ndarray
@@ -73,7 +75,7 @@ class WorldState(NamedTuple):
             rover_velocities=np.zeros((e, r, 2)),
             poi_positions=np.zeros((e, k, 2)),
             poi_values=np.zeros((e, k)),
-            obstacles=np.zeros((e, n_obstacles, 3)),
+            obstacles=np.zeros((e, n_obstacles, 5)),
             poi_counts=np.zeros((e, k), dtype=np.int64),
             in_range=np.zeros((steps + 1, e, r, k), dtype=bool),
             captured=np.zeros((e, k), dtype=bool),

@@ -126,7 +126,7 @@ class RoverWorld:
         self.sensor = config.sensor
         self.obs_dim = int(self.sensor.dim)
         self.dynamics = DYNAMICS[config.motion](config, self.n_teams)
-        obstacles = config.scenario.obstacles()
+        obstacles = config.scenario.obstacle_capsules()
         self.state = WorldState.zeros(
             self.n_teams, self.n_rovers, self.n_pois, config.steps, len(obstacles)
         )
