@@ -51,7 +51,7 @@ def read_run(run_dir: Path, episodes: int, seed: int) -> dict[str, np.ndarray]:
     o, a = world.trajectories()  # (T, E, R, n_obs), (T, E, R, 2)
     pairs = np.concatenate([o, a], axis=-1).transpose(2, 1, 0, 3)  # (R, E, T, D)
     n_rovers, n_eps, steps, width = pairs.shape
-    values = critic.critics(pairs.reshape(n_rovers, n_eps * steps, width))
+    values = critic.values(pairs.reshape(n_rovers, n_eps * steps, width))
     values = values.reshape(n_rovers, n_eps, steps).transpose(1, 2, 0)  # (E, T, R)
     after = world.position_history[1:].transpose(1, 0, 2, 3)  # (E, T, R, 2): s_{t+1}
     pois = world.poi_positions[:, None, None, :, :]  # (E, 1, 1, K, 2)

@@ -7,6 +7,8 @@ import numpy as np
 import oracles
 import pytest
 
+from physrover.compiled import dims
+from physrover.config import ConfigError, LearnConfig
 from physrover.learn.critics import (
     CriticSettings,
     FitnessCritic,
@@ -14,6 +16,7 @@ from physrover.learn.critics import (
     ReplayBuffer,
     aggregate,
 )
+from physrover.learn.kernels import critic_update
 
 
 def _critic(aggregation, update, hidden=6, seed=0):
@@ -204,3 +207,62 @@ def test_top_k_fitness_is_the_mean_of_the_k_largest_values():
         LearnConfig(method="mean-critic", critic_top_k=3)
     with pytest.raises(ConfigError, match="critic_top_k: must be >= 1"):
         LearnConfig(critic_top_k=0)
+
+
+def test_an_ensemble_values_pairs_by_mean_plus_optimism_times_spread():
+    settings = CriticSettings("max", "inexact", 6, 0.01, 1e-3, "sgd", 100, 4, 3,
+                              ensemble=3, optimism=0.5)  # fmt: skip
+    fc = FitnessCritic(2, 5, 10, settings, np.random.default_rng(0))
+    c, rng = fc.critics, np.random.default_rng(1)
+    assert c.W1.shape[0] == 6  # rover-major: critic r * 3 + k
+    traj = rng.normal(size=(2, 4, 5, 10)).astype(np.float32)
+    got = fc.fitness(traj)
+    for r in range(2):
+        for p in range(4):
+            x = traj[r, p]  # (T, D): each member as a plain loop of Eq. 2
+            members = []
+            for k in range(3):
+                i = 3 * r + k
+                z = x @ c.W1[i] + c.b1[i]
+                members.append(np.where(z > 0, z, 0.01 * z).sum(-1) + c.b2[i])
+            members = np.array(members)  # (3, T)
+            value = members.mean(0) + 0.5 * members.std(0)
+            np.testing.assert_allclose(got[r, p], value.max(), rtol=1e-5)
+    # each member draws its own mini-batches from its rover's buffer
+    fc.store(traj, rng.normal(size=(2, 4)))
+    before = c.W1.copy()
+    fc.update(np.random.default_rng(3))
+    moved = np.abs(c.W1 - before).reshape(6, -1).sum(1)
+    assert np.all(moved > 0) and len(set(np.round(moved, 12))) == 6
+
+
+def test_critics_share_a_buffer_as_if_it_were_copied():
+    """critic_update with buffer_of = [0, 0, 1] is critic_update on the copied rows."""
+    rng = np.random.default_rng(4)
+    hidden, pairs = 5, 10
+    W1T = rng.normal(size=(3, hidden, pairs)).astype(np.float32)
+    b1 = rng.normal(size=(3, hidden)).astype(np.float32)
+    b2 = np.zeros(3, np.float32)
+    items = rng.normal(size=(2, 40, 1, pairs)).astype(np.float32)
+    feedback = rng.normal(size=(2, 40)).astype(np.float32)
+    index = rng.integers(0, 40, (3, 12))
+    args = (np.float32(0.01), np.float32(1e-2))
+    shared = [a.copy() for a in (W1T, b1, b2)]
+    moments = np.zeros((3, 2, hidden * (pairs + 1) + 1), np.float32)
+    critic_update(*shared, *args, items, feedback, np.array([0, 0, 1]), index, 4, True,
+                  False, moments, 0, dims(pairs))  # fmt: skip
+    copied = [a.copy() for a in (W1T, b1, b2)]
+    rows = np.array([0, 0, 1])
+    critic_update(*copied, *args, items[rows], feedback[rows], np.arange(3), index, 4, True,
+                  False, moments.copy(), 0, dims(pairs))  # fmt: skip
+    for a, b in zip(shared, copied, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(shared[0], W1T)
+
+
+def test_ensemble_options_are_checked():
+    with pytest.raises(ConfigError, match="critic_optimism: an ensemble's spread needs"):
+        LearnConfig(critic_optimism=1.0)
+    with pytest.raises(ConfigError, match="critic_ensemble: must be >= 1"):
+        LearnConfig(critic_ensemble=0)
+    assert LearnConfig(critic_ensemble=4, critic_optimism=1.0).critic_ensemble == 4

@@ -79,14 +79,19 @@ def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
         np.testing.assert_array_equal(ccea.fitness[r, teams[:, r]], D[:, r])
 
 
-@pytest.mark.parametrize("method", ["max-critic", "mean-critic", "hall-of-fame", "step-input"])
+@pytest.mark.parametrize(
+    "method", ["max-critic", "mean-critic", "hall-of-fame", "step-input", "ensemble"]
+)
 def test_resume_is_bit_identical(tmp_path, method):
     step_input = method == "step-input"  # the max critic that also sees the step
+    ensemble = 3 if method == "ensemble" else 1  # an optimistic ensemble of 3 max critics
     config = RunConfig().with_overrides(
         {
             **EASY,
-            "method": "max-critic" if step_input else method,
+            "method": "max-critic" if method in ("step-input", "ensemble") else method,
             "critic_step_input": step_input,
+            "critic_ensemble": ensemble,
+            "critic_optimism": 1.0 if ensemble > 1 else 0.0,
             "checkpoint_every": 3,
             "replay_pairs": 700,
             "seed": 5,

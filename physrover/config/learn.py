@@ -55,6 +55,14 @@ class LearnConfig(ConfigBase):
     critic_top_k: int = 1
     """Beyond the paper: the max critic's fitness is the mean of the k largest critic values
     along the trajectory (1: their max, Eq. 3, the paper's). Inexact updates only."""
+    critic_ensemble: int = 1
+    """Beyond the paper: each rover's intermediate critic is an ensemble of this many
+    critics (own random initialisations, own mini-batches from the rover's replay); a pair's
+    value is their mean plus ``critic_optimism`` times their standard deviation (1: the
+    paper's single critic)."""
+    critic_optimism: float = 0.0
+    """Beyond the paper: the weight beta of the ensemble's spread in a pair's value,
+    ``mean + beta * std`` (optimism under the critic's uncertainty; needs an ensemble)."""
     leaky_slope: float = 0.01
     """Slope of the critic's leaky ReLU for negative inputs."""
     critic_lr: float = 5e-6
@@ -94,11 +102,22 @@ class LearnConfig(ConfigBase):
             "critic_top_k",
             f"a softer max is for the max critic with inexact updates, not {self.method!r}",
         )
+        check(
+            self.critic_optimism >= 0 and math.isfinite(self.critic_optimism),
+            "critic_optimism",
+            f"must be >= 0, got {self.critic_optimism}",
+        )
+        check(
+            self.critic_optimism == 0 or self.critic_ensemble > 1,
+            "critic_optimism",
+            "an ensemble's spread needs critic_ensemble > 1",
+        )
         check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
         self.check_at_least(
-            1, "hidden", "n_samples", "eval_episodes", "critic_hidden", "replay_trajectories",
+            1, "hidden", "n_samples", "eval_episodes", "critic_hidden", "critic_ensemble",
+            "replay_trajectories",
             "trajectory_batch", "trajectory_batches", "replay_pairs", "pair_batch",
             "pair_batches", "checkpoint_every",
         )  # fmt: skip

@@ -33,7 +33,12 @@ paper's sensor). Beyond the paper, ``step_input`` appends the pair's step t / (T
 eleventh input, so a critic can value *when* a state is reached, not only where; and
 ``top_k`` > 1 makes the max critic's fitness the mean of the k largest values along the
 trajectory instead of the largest alone (a softer max, less sensitive to one over-valued
-pair; its inexact updates are per pair, so only the fitness changes).
+pair; its inexact updates are per pair, so only the fitness changes); and ``ensemble`` = K
+> 1 gives each rover K intermediate critics (own initialisations, each trained on its own
+mini-batches drawn from the rover's one replay buffer), a pair's value being
+``mean_k C_k(x) + optimism * std_k C_k(x)`` (population std): with ``optimism`` > 0 an
+upper confidence value, optimism under the critic's uncertainty in the spirit of the
+paper's optimistic max. Critics are stacked rover-major: critic ``r * K + k``.
 """
 
 from __future__ import annotations
@@ -119,9 +124,10 @@ class ReplayBuffer:
         self.next = int((self.next + n) % self.capacity)
         self.size = min(self.size + n, self.capacity)
 
-    def sample_index(self, rng: np.random.Generator, batch: int) -> np.ndarray:
-        """(R, batch) slots drawn uniformly (with replacement) from each rover's entries."""
-        return rng.integers(0, self.size, (self.items.shape[0], batch))
+    def sample_index(self, rng: np.random.Generator, batch: int, rows: int = 0) -> np.ndarray:
+        """(rows, batch) slots drawn uniformly (with replacement) from the entries (rows: one
+        per critic; by default one per rover)."""
+        return rng.integers(0, self.size, (rows or self.items.shape[0], batch))
 
     def sample(self, rng: np.random.Generator, batch: int) -> tuple[np.ndarray, np.ndarray]:
         """(R, batch, *item_shape) items and (R, batch) feedback, uniform per rover."""
@@ -156,6 +162,8 @@ class CriticSettings:
     batches: int
     step_input: bool = False  # the critic also sees t / (T - 1) (beyond the paper)
     top_k: int = 1  # max aggregation as the mean of the k largest values (1: Eq. 3)
+    ensemble: int = 1  # critics per rover (beyond the paper; 1: the paper's one)
+    optimism: float = 0.0  # a pair's value is mean + optimism * std over the ensemble
 
 
 class FitnessCritic:
@@ -174,10 +182,13 @@ class FitnessCritic:
         # With step_input each pair gains a last input, its step's t / (T - 1) in [0, 1].
         pair_dim += int(settings.step_input)
         self.settings, self.pair_dim = settings, pair_dim
-        self.critics = IntermediateCritics(n_rovers, pair_dim, settings.hidden, settings.slope, rng)
+        n_critics = n_rovers * settings.ensemble  # rover-major: critic r * K + k
+        self.critics = IntermediateCritics(n_critics, pair_dim, settings.hidden, settings.slope,
+                                           rng)  # fmt: skip
+        self.buffer_of = np.repeat(np.arange(n_rovers), settings.ensemble)  # critic -> rover
         n_params = settings.hidden * (pair_dim + 1) + 1
         # Adam's first and second moments of each critic's W1T | b1 | b2, and its step count.
-        self.moments = np.zeros((n_rovers, 2, n_params), dtype=np.float32)
+        self.moments = np.zeros((n_critics, 2, n_params), dtype=np.float32)
         self.adam_steps = 0
         item = (steps, pair_dim) if settings.update == "regular" else (pair_dim,)
         self.buffer = ReplayBuffer(n_rovers, settings.capacity, item)
@@ -197,12 +208,24 @@ class FitnessCritic:
         """F(T) of (R, k, T, D) trajectories -> (R, k)."""
         trajectories = self.inputs(trajectories)
         n_rovers, k, steps, _ = trajectories.shape
-        values = self.critics(trajectories.reshape(n_rovers, k * steps, self.pair_dim))
+        values = self.values(trajectories.reshape(n_rovers, k * steps, self.pair_dim))
         values = values.reshape(n_rovers, k, steps)
         top_k = min(self.settings.top_k, steps)
         if self.settings.aggregation == "max" and top_k > 1:  # beyond the paper: a softer max
             return np.partition(values, steps - top_k, axis=-1)[..., steps - top_k :].mean(-1)
         return aggregate(values, self.settings.aggregation)[0]
+
+    def values(self, pairs: np.ndarray) -> np.ndarray:
+        """A pair's value for (R, N, D) pairs -> (R, N): its rover's critic (Eq. 2), or the
+        ensemble's ``mean + optimism * std`` (module docstring)."""
+        K = self.settings.ensemble
+        if K == 1:
+            return self.critics(pairs)
+        each = self.critics(np.repeat(pairs, K, axis=0)).reshape(pairs.shape[0], K, -1)
+        value = each.mean(axis=1)
+        if self.settings.optimism:
+            value += np.float32(self.settings.optimism) * each.std(axis=1)
+        return value
 
     def store(self, trajectories: np.ndarray, feedback: np.ndarray) -> None:
         """Add (R, k, T, D) trajectories with their (R, k) immediate feedback."""
@@ -224,15 +247,16 @@ class FitnessCritic:
             return float("nan")
         # All mini-batches are drawn up front (one draw instead of one per batch); the
         # batches are independent uniform draws either way.
-        index = self.buffer.sample_index(rng, s.batches * s.batch)
+        index = self.buffer.sample_index(rng, s.batches * s.batch, len(self.buffer_of))
         items = self.buffer.items  # (R, C, T, D) trajectories or (R, C, D) pairs
         if items.ndim == 3:  # inexact: entries of one pair
             items = items[:, :, None, :]
         c, W1T = self.critics, self.critics.W1T()
         adam = s.optimizer == "adam"
         loss = critic_update(W1T, c.b1, c.b2, c.slope, np.float32(s.lr), items,
-                             self.buffer.feedback, index, s.batch, s.aggregation == "max", adam,
-                             self.moments, self.adam_steps, dims(self.pair_dim))  # fmt: skip
+                             self.buffer.feedback, self.buffer_of, index, s.batch,
+                             s.aggregation == "max", adam, self.moments, self.adam_steps,
+                             dims(self.pair_dim))  # fmt: skip
         c.W1[...] = np.swapaxes(W1T, 1, 2)
         if adam:
             self.adam_steps += s.batches

@@ -232,6 +232,8 @@ def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
         batches=cfg.trajectory_batches if regular else cfg.pair_batches,
         step_input=cfg.critic_step_input,
         top_k=cfg.critic_top_k,
+        ensemble=cfg.critic_ensemble,
+        optimism=cfg.critic_optimism,
     )
     return CriticFitness(
         FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)

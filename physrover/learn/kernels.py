@@ -246,12 +246,14 @@ def _apply(param, direction, lr, adam, m, v, c1, c2):
 
 @jit
 def critic_update(
-    W1T, b1, b2, slope, lr, items, feedback, index, batch, use_max, adam, moments, step, dims
-):
-    """One generation of mini-batch updates of R critics, in place; both update kinds.
+    W1T, b1, b2, slope, lr, items, feedback, buffer_of, index, batch, use_max, adam, moments,
+    step, dims,
+):  # fmt: skip
+    """One generation of mini-batch updates of N critics, in place; both update kinds.
 
-    Critic r's mini-batches are the replay entries ``items[r, index[r]]`` (items
-    (R, C, T, D): entries of T state-action pairs, feedback (R, C), index (R, M)),
+    Critic c's mini-batches are the replay entries ``items[b, index[c]]`` of its buffer
+    ``b = buffer_of[c]`` (items (R, C, T, D): entries of T state-action pairs, feedback
+    (R, C), buffer_of (N,), index (N, M)),
     ``M // batch`` of them one after the other. Per entry the critic's values of its T pairs
     are aggregated, by their mean or (``use_max``) their maximum (the first, as
     ``np.argmax``): ``F = agg_t C(x_t)``; with ``delta = f - F`` (Eq. 8, or Eq. 10 for T = 1)
@@ -291,12 +293,13 @@ def critic_update(
     sq_sum = 0.0
     for r in range(n_critics):
         W, b = W1T[r], b1[r]
+        rover = buffer_of[r]
         for m in range(n_items):  # random reads, many in flight
             slot = index[r, m]
-            drawn_feedback[m] = feedback[r, slot]
+            drawn_feedback[m] = feedback[rover, slot]
             for t in range(steps):
                 for i in range(n_in):
-                    drawn[m, t, i] = items[r, slot, t, i]
+                    drawn[m, t, i] = items[rover, slot, t, i]
         for number, first in enumerate(range(0, n_batches * batch, batch)):
             for j in range(batch):
                 for t in range(steps):
