@@ -249,11 +249,11 @@ def test_critics_share_a_buffer_as_if_it_were_copied():
     args = (np.float32(0.01), np.float32(1e-2))
     shared = [a.copy() for a in (W1T, b1, b2)]
     moments = np.zeros((3, 2, hidden * (pairs + 1) + 1), np.float32)
-    critic_update(*shared, *args, items, feedback, np.array([0, 0, 1]), index, 4, True,
+    critic_update(*shared, None, *args, items, feedback, np.array([0, 0, 1]), index, 4, True,
                   False, moments, 0, dims(pairs))  # fmt: skip
     copied = [a.copy() for a in (W1T, b1, b2)]
     rows = np.array([0, 0, 1])
-    critic_update(*copied, *args, items[rows], feedback[rows], np.arange(3), index, 4, True,
+    critic_update(*copied, None, *args, items[rows], feedback[rows], np.arange(3), index, 4, True,
                   False, moments.copy(), 0, dims(pairs))  # fmt: skip
     for a, b in zip(shared, copied, strict=True):
         np.testing.assert_array_equal(a, b)
@@ -266,3 +266,65 @@ def test_ensemble_options_are_checked():
     with pytest.raises(ConfigError, match="critic_ensemble: must be >= 1"):
         LearnConfig(critic_ensemble=0)
     assert LearnConfig(critic_ensemble=4, critic_optimism=1.0).critic_ensemble == 4
+
+
+@pytest.mark.parametrize("use_max", [True, False])
+def test_trained_output_weights_step_along_the_gradient(use_max):
+    """One SGD mini-batch with trained output weights moves every parameter (W2 included)
+    by lr times minus the gradient of half the summed squared error, which a plain float64
+    loop computes by central differences."""
+    rng = np.random.default_rng(7)
+    hidden, width, steps, batch = 4, 3, 5 if not use_max else 1, 6
+    W1 = rng.normal(size=(width, hidden))
+    b1, W2, b2 = rng.normal(size=hidden), rng.uniform(0.5, 1.5, hidden), 0.3
+    items = rng.normal(size=(1, batch, steps, width))
+    feedback = rng.normal(size=(1, batch))
+
+    def half_sq_error(W1, b1, W2, b2):
+        total = 0.0
+        for j in range(batch):
+            z = items[0, j] @ W1 + b1  # (T, H)
+            c = np.where(z > 0, z, 0.01 * z) @ W2 + b2
+            F = c.max() if use_max else c.mean()
+            total += 0.5 * (feedback[0, j] - F) ** 2
+        return total
+
+    params = [W1, b1, W2, np.array([b2])]
+    numeric = []
+    for p in params:
+        g = np.zeros_like(p)
+        for idx in np.ndindex(p.shape):
+            keep = p[idx]
+            p[idx] = keep + 1e-6
+            up = half_sq_error(*params[:3], params[3][0])
+            p[idx] = keep - 1e-6
+            down = half_sq_error(*params[:3], params[3][0])
+            p[idx] = keep
+            g[idx] = (up - down) / 2e-6
+        numeric.append(g)
+    lr = np.float32(1e-4)
+    state = [np.ascontiguousarray(W1.T[None], np.float32), b1[None].astype(np.float32),
+             np.array([b2], np.float32), W2[None].astype(np.float32)]  # fmt: skip
+    before = [a.copy() for a in state]
+    moments = np.zeros((1, 2, hidden * (width + 2) + 1), np.float32)
+    critic_update(*state, np.float32(0.01), lr, items.astype(np.float32),
+                  feedback.astype(np.float32), np.array([0]), np.arange(batch)[None], batch,
+                  use_max, False, moments, 0, dims(width))  # fmt: skip
+    steps_taken = [(a - b) / lr for a, b in zip(state, before, strict=True)]
+    expected = [-numeric[0].T[None], -numeric[1][None], -numeric[3], -numeric[2][None]]
+    for got, want in zip(steps_taken, expected, strict=True):
+        np.testing.assert_allclose(got, want, rtol=2e-2, atol=2e-3)
+    assert np.abs(steps_taken[3]).max() > 1e-2  # the output weights did move
+
+
+def test_the_trained_critic_starts_as_the_papers():
+    fixed = CriticSettings("max", "inexact", 6, 0.01, 1e-3, "sgd", 100, 4, 3)
+    trained = CriticSettings("max", "inexact", 6, 0.01, 1e-3, "sgd", 100, 4, 3,
+                             output_weights="trained")  # fmt: skip
+    a = FitnessCritic(2, 5, 10, fixed, np.random.default_rng(0))
+    b = FitnessCritic(2, 5, 10, trained, np.random.default_rng(0))
+    traj = np.random.default_rng(1).normal(size=(2, 3, 5, 10)).astype(np.float32)
+    np.testing.assert_array_equal(a.fitness(traj), b.fitness(traj))
+    assert len(b.critics.params()) == 4 and b.moments.shape[-1] == a.moments.shape[-1] + 6
+    with pytest.raises(ConfigError, match="critic_output_weights"):
+        LearnConfig(critic_output_weights="learned")

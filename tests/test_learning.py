@@ -80,7 +80,8 @@ def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
 
 
 @pytest.mark.parametrize(
-    "method", ["max-critic", "mean-critic", "hall-of-fame", "step-input", "ensemble"]
+    "method",
+    ["max-critic", "mean-critic", "hall-of-fame", "step-input", "ensemble", "trained-output"],
 )
 def test_resume_is_bit_identical(tmp_path, method):
     step_input = method == "step-input"  # the max critic that also sees the step
@@ -88,7 +89,8 @@ def test_resume_is_bit_identical(tmp_path, method):
     config = RunConfig().with_overrides(
         {
             **EASY,
-            "method": "max-critic" if method in ("step-input", "ensemble") else method,
+            "method": method if "critic" in method or method == "hall-of-fame" else "max-critic",
+            "critic_output_weights": "trained" if method == "trained-output" else "fixed",
             "critic_step_input": step_input,
             "critic_ensemble": ensemble,
             "critic_optimism": 1.0 if ensemble > 1 else 0.0,

@@ -63,6 +63,9 @@ class LearnConfig(ConfigBase):
     critic_optimism: float = 0.0
     """Beyond the paper: the weight beta of the ensemble's spread in a pair's value,
     ``mean + beta * std`` (optimism under the critic's uncertainty; needs an ensemble)."""
+    critic_output_weights: str = "fixed"
+    """The critic's hidden-to-output weights: "fixed" to 1 (the paper's) or "trained" with
+    the other parameters (an ablation; initialised to 1)."""
     leaky_slope: float = 0.01
     """Slope of the critic's leaky ReLU for negative inputs."""
     critic_lr: float = 5e-6
@@ -96,6 +99,7 @@ class LearnConfig(ConfigBase):
             )
         check(self.feedback in CREDITS, "feedback", CREDITS.unknown_message(self.feedback))
         check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
+        check_choice(self.critic_output_weights, ("fixed", "trained"), "critic_output_weights")
         check(self.critic_top_k >= 1, "critic_top_k", f"must be >= 1, got {self.critic_top_k}")
         check(
             self.critic_top_k == 1 or self.method in ("max-critic", *TRAINERS),

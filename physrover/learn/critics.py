@@ -6,8 +6,11 @@ Intermediate critic of rover i (Eq. 2), for a state-action pair x = (s, a) in R^
 
 a D -> 80 -> 1 network (D = 10 with the paper's sensor) with leaky-ReLU hidden units
 (slope 0.01) whose hidden-to-output weights are fixed to 1; only W1, b1 and the output
-bias b2 train (paper Section 4.2). The critics of all R rovers are stacked and evaluated
-and trained together.
+bias b2 train (paper Section 4.2). Beyond the paper, ``output_weights="trained"`` makes
+them parameters W2 (initialised to 1) trained with the rest,
+``C(x) = sum_h W2[h] lrelu(...)_h + b2`` (an ablation: with positive W2 the two critics
+represent the same functions, lrelu being positively homogeneous, but learn differently).
+The critics of all R rovers are stacked and evaluated and trained together.
 
 Fitness critic (Eqs. 3-5): the aggregate of C over the policy's trajectory T of this
 generation, ``F_max(T) = max_t C(x_t)`` or ``F_mean(T) = mean_t C(x_t)``.
@@ -53,26 +56,35 @@ from physrover.learn.kernels import critic_update, critic_values
 
 class IntermediateCritics:
     """R critics ``C(x) = sum_h lrelu(x W1 + b1)_h + b2`` (Eq. 2) on pairs of ``pair_dim``
-    inputs, stacked; float32 parameters W1 (R, D, H), b1 (R, H), b2 (R,)."""
+    inputs, stacked; float32 parameters W1 (R, D, H), b1 (R, H), b2 (R,), and with
+    ``trained_output`` W2 (R, H) (else None: the paper's fixed unit weights)."""
 
     def __init__(
-        self, n_critics: int, pair_dim: int, hidden: int, slope: float, rng: np.random.Generator
+        self,
+        n_critics: int,
+        pair_dim: int,
+        hidden: int,
+        slope: float,
+        rng: np.random.Generator,
+        trained_output: bool = False,
     ):
         bound = 1.0 / np.sqrt(pair_dim)  # PyTorch's default initialisation of a linear layer
         self.W1 = rng.uniform(-bound, bound, (n_critics, pair_dim, hidden)).astype(np.float32)
         self.b1 = rng.uniform(-bound, bound, (n_critics, hidden)).astype(np.float32)
         self.b2 = np.zeros(n_critics, dtype=np.float32)
+        self.W2 = np.ones((n_critics, hidden), dtype=np.float32) if trained_output else None
         self.slope = np.float32(slope)
 
     def params(self) -> list[np.ndarray]:
-        return [self.W1, self.b1, self.b2]
+        return [self.W1, self.b1, self.b2] + ([] if self.W2 is None else [self.W2])
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """C for (R, N, D) pairs -> (R, N) float32."""
         # The kernel keeps pairs in its innermost loop: pairs (R, D, N), weights (R, H, D).
         xT = np.ascontiguousarray(np.swapaxes(x, 1, 2), dtype=np.float32)
         out = np.empty(x.shape[:2], dtype=np.float32)
-        critic_values(self.W1T(), self.b1, self.b2, self.slope, xT, out, dims(x.shape[-1]))
+        critic_values(self.W1T(), self.b1, self.b2, self.W2, self.slope, xT, out,
+                      dims(x.shape[-1]))  # fmt: skip
         return out
 
     def W1T(self) -> np.ndarray:
@@ -164,6 +176,7 @@ class CriticSettings:
     top_k: int = 1  # max aggregation as the mean of the k largest values (1: Eq. 3)
     ensemble: int = 1  # critics per rover (beyond the paper; 1: the paper's one)
     optimism: float = 0.0  # a pair's value is mean + optimism * std over the ensemble
+    output_weights: str = "fixed"  # "fixed" (the paper's unit weights) | "trained"
 
 
 class FitnessCritic:
@@ -183,10 +196,13 @@ class FitnessCritic:
         pair_dim += int(settings.step_input)
         self.settings, self.pair_dim = settings, pair_dim
         n_critics = n_rovers * settings.ensemble  # rover-major: critic r * K + k
+        if settings.output_weights not in ("fixed", "trained"):
+            raise ValueError(f"unknown output weights {settings.output_weights!r}")
+        trained = settings.output_weights == "trained"
         self.critics = IntermediateCritics(n_critics, pair_dim, settings.hidden, settings.slope,
-                                           rng)  # fmt: skip
+                                           rng, trained)  # fmt: skip
         self.buffer_of = np.repeat(np.arange(n_rovers), settings.ensemble)  # critic -> rover
-        n_params = settings.hidden * (pair_dim + 1) + 1
+        n_params = settings.hidden * (pair_dim + 1 + int(trained)) + 1
         # Adam's first and second moments of each critic's W1T | b1 | b2, and its step count.
         self.moments = np.zeros((n_critics, 2, n_params), dtype=np.float32)
         self.adam_steps = 0
@@ -253,7 +269,7 @@ class FitnessCritic:
             items = items[:, :, None, :]
         c, W1T = self.critics, self.critics.W1T()
         adam = s.optimizer == "adam"
-        loss = critic_update(W1T, c.b1, c.b2, c.slope, np.float32(s.lr), items,
+        loss = critic_update(W1T, c.b1, c.b2, c.W2, c.slope, np.float32(s.lr), items,
                              self.buffer.feedback, self.buffer_of, index, s.batch,
                              s.aggregation == "max", adam, self.moments, self.adam_steps,
                              dims(self.pair_dim))  # fmt: skip
@@ -263,14 +279,18 @@ class FitnessCritic:
         return float(loss)
 
     def _moments_by_param(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Adam's m and v as [W1 (R, D, H), b1 (R, H), b2 (R,)] (the checkpoint layout)."""
+        """Adam's m and v as [W1 (R, D, H), b1 (R, H), b2 (R,)] and, with trained output
+        weights, W2 (R, H) (the checkpoint layout)."""
         n_rovers, hidden, n_w = self.moments.shape[0], self.settings.hidden, self.W_size
         out = []
         for which in (0, 1):
             flat = self.moments[:, which]
             W1T = flat[:, :n_w].reshape(n_rovers, hidden, self.pair_dim)
-            out.append([np.swapaxes(W1T, 1, 2).copy(), flat[:, n_w : n_w + hidden].copy(),
-                        flat[:, n_w + hidden].copy()])  # fmt: skip
+            blocks = [np.swapaxes(W1T, 1, 2).copy(), flat[:, n_w : n_w + hidden].copy(),
+                      flat[:, n_w + hidden].copy()]  # fmt: skip
+            if self.critics.W2 is not None:
+                blocks.append(flat[:, n_w + hidden + 1 :].copy())
+            out.append(blocks)
         return out[0], out[1]
 
     @property
@@ -291,11 +311,14 @@ class FitnessCritic:
         for p, saved in zip(self.critics.params(), state["params"], strict=True):
             p[...] = saved
         n_rovers, n_w = self.moments.shape[0], self.W_size
+        hidden = self.settings.hidden
         for which, key in enumerate(("adam_m", "adam_v")):
-            W1, b1, b2 = (np.asarray(a, dtype=np.float32) for a in state[key])
+            blocks = [np.asarray(a, dtype=np.float32) for a in state[key]]
             flat = self.moments[:, which]
-            flat[:, :n_w] = np.swapaxes(W1, 1, 2).reshape(n_rovers, n_w)
-            flat[:, n_w:-1] = b1
-            flat[:, -1] = b2
+            flat[:, :n_w] = np.swapaxes(blocks[0], 1, 2).reshape(n_rovers, n_w)
+            flat[:, n_w : n_w + hidden] = blocks[1]
+            flat[:, n_w + hidden] = blocks[2]
+            if self.critics.W2 is not None:
+                flat[:, n_w + hidden + 1 :] = blocks[3]
         self.adam_steps = int(state["adam_t"])
         self.buffer.load(state["buffer"])

@@ -234,6 +234,7 @@ def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
         top_k=cfg.critic_top_k,
         ensemble=cfg.critic_ensemble,
         optimism=cfg.critic_optimism,
+        output_weights=cfg.critic_output_weights,
     )
     return CriticFitness(
         FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)

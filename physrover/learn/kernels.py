@@ -46,9 +46,11 @@ def gather_trajectories(obs, act, where, out, dims):
 
 
 @jit
-def _critic_forward(W1T, b1, slope, xT, z, value, dims):
+def _critic_forward(W1T, b1, out_w, slope, xT, z, value, dims):
     """Sums ``value[n] = sum_h lrelu(z[h, n])`` (N,) of one critic (W1T (H, D), b1 (H,)) on
-    pairs xT (D, N); the pre-activations ``z[h, n] = b1[h] + sum_i xT[i, n] W1T[h, i]``
+    pairs xT (D, N), or ``sum_h out_w[h] lrelu(z[h, n])`` with trained output weights
+    ``out_w`` (H,) (None: the paper's fixed unit weights, compiled as if absent); the
+    pre-activations ``z[h, n] = b1[h] + sum_i xT[i, n] W1T[h, i]``
     (added in the order of i) go to the rows of ``z``: (H, N) to keep them, or (1, N) as
     scratch. ``dims``: D zeros (``compiled.dims``).
 
@@ -119,27 +121,34 @@ def _critic_forward(W1T, b1, slope, xT, z, value, dims):
                     zn += xT[i0 + 15, n] * w15
                 zu[n] = zn
                 if last:
-                    value[n] += zn if zn > 0 else slope * zn
+                    if out_w is None:
+                        value[n] += zn if zn > 0 else slope * zn
+                    else:
+                        value[n] += out_w[u] * (zn if zn > 0 else slope * zn)
 
 
 @jit
-def critic_values(W1T, b1, b2, slope, xT, out, dims):
+def critic_values(W1T, b1, b2, W2, slope, xT, out, dims):
     """``C(x) = sum_h lrelu(x W1 + b1)_h + b2`` (Eq. 2) of R critics (W1T (R, H, D), b1
-    (R, H), b2 (R,)) on pairs xT (R, D, N), into (R, N) ``out``; ``dims``: D zeros
-    (``compiled.dims``)."""
+    (R, H), b2 (R,)) on pairs xT (R, D, N), into (R, N) ``out``, or with trained output
+    weights W2 (R, H) ``sum_h W2_h lrelu(...)_h + b2`` (None: fixed to 1); ``dims``: D
+    zeros (``compiled.dims``)."""
     scratch = np.empty((1, xT.shape[2]), np.float32)
     for r in range(xT.shape[0]):
         value = out[r]
-        _critic_forward(W1T[r], b1[r], slope, xT[r], scratch, value, dims)
+        w2 = None if W2 is None else W2[r]
+        _critic_forward(W1T[r], b1[r], w2, slope, xT[r], scratch, value, dims)
         for n in range(value.shape[0]):
             value[n] += b2[r]
 
 
 @jit_reassoc
-def _weighted_grad(W1T, slope, xT, z, u_weights, dW1T, db1, dims):
+def _weighted_grad(W1T, w2, slope, xT, z, u_weights, dW1T, db1, dw2, dims):
     """``sum_n u_n grad C(x_n)`` of one critic for the W1 and b1 blocks, from the pairs xT
     (D, N), their pre-activations z (H, N) and weights (N,), into dW1T (H, D), db1 (H,);
-    ``dims``: D zeros (``compiled.dims``). Register tiling as in :func:`_critic_forward`.
+    with trained output weights ``w2`` (H,) (None: fixed to 1) the W1 and b1 terms carry
+    their unit's w2 and ``dw2`` (H,) gets ``sum_n u_n lrelu(z[h, n])``; ``dims``: D zeros
+    (``compiled.dims``). Register tiling as in :func:`_critic_forward`.
 
     Each entry is a sum over the N pairs; this is the one place where the compiler may
     reorder additions (vectorised partial sums), so the sums are reproducible on a machine
@@ -154,10 +163,14 @@ def _weighted_grad(W1T, slope, xT, z, u_weights, dW1T, db1, dims):
         for i0 in range(0, n_in, TILE):
             s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = s9 = s10 = s11 = s12 = s13 = s14 = s15 = (
                 sb
-            ) = np.float32(0.0)
+            ) = sw = np.float32(0.0)
             for n in range(n_pairs):
                 # lrelu'(z) = slope + (1 - slope) [z > 0], times the pair's weight
                 g = ((one_minus if zu[n] > 0 else np.float32(0.0)) + slope) * u_weights[n]
+                if w2 is not None:  # trained output weights: dC/dz carries the unit's w2
+                    if i0 == 0:
+                        sw += u_weights[n] * (zu[n] if zu[n] > 0 else slope * zu[n])
+                    g *= w2[u]
                 sb += g
                 if i0 + 0 < n_in:
                     s0 += xT[i0 + 0, n] * g
@@ -193,6 +206,8 @@ def _weighted_grad(W1T, slope, xT, z, u_weights, dW1T, db1, dims):
                     s15 += xT[i0 + 15, n] * g
             if i0 == 0:
                 db1[u] = sb
+                if w2 is not None:
+                    dw2[u] = sw
             if i0 + 0 < n_in:
                 dW1T[u, i0 + 0] = s0
             if i0 + 1 < n_in:
@@ -246,8 +261,8 @@ def _apply(param, direction, lr, adam, m, v, c1, c2):
 
 @jit
 def critic_update(
-    W1T, b1, b2, slope, lr, items, feedback, buffer_of, index, batch, use_max, adam, moments,
-    step, dims,
+    W1T, b1, b2, W2, slope, lr, items, feedback, buffer_of, index, batch, use_max, adam,
+    moments, step, dims,
 ):  # fmt: skip
     """One generation of mini-batch updates of N critics, in place; both update kinds.
 
@@ -264,11 +279,12 @@ def critic_update(
       aggregations are the value itself and the arithmetic is exactly the per-pair rule).
 
     The step is plain (``w += lr * direction``, the paper's) or, with ``adam``, Adam's on the
-    same gradient; ``moments`` (R, 2, H * (D + 1) + 1) holds Adam's m and v of each critic's
-    parameters flattened as ``W1T | b1 | b2``, and ``step`` the steps taken before this call
-    (Adam's t, shared by all critics); ``dims``: D zeros (``compiled.dims``). Critics are
-    independent, so each runs all its mini-batches in turn. Returns the mean of
-    ``delta**2`` over all critics and entries (float64).
+    same gradient. ``W2`` (N, H): trained output weights, updated too (None: the paper's
+    fixed unit weights). ``moments`` (N, 2, H * (D + 1) + 1 [+ H]) holds Adam's m and v of
+    each critic's parameters flattened as ``W1T | b1 | b2 [| W2]``, and ``step`` the steps
+    taken before this call (Adam's t, shared by all critics); ``dims``: D zeros
+    (``compiled.dims``). Critics are independent, so each runs all its mini-batches in turn.
+    Returns the mean of ``delta**2`` over all critics and entries (float64).
     """
     n_in = len(dims)
     n_critics, n_items = index.shape
@@ -286,13 +302,16 @@ def critic_update(
     value = np.empty(padded, np.float32)
     weight = np.zeros(padded, np.float32)  # dF/dC(x_n) * delta of the pair's entry
     n_w = hidden * n_in
-    grad = np.empty(n_w + hidden + 1, np.float32)  # dW1T | db1 | db2, flat
+    n_out = 0 if W2 is None else hidden
+    grad = np.empty(n_w + hidden + 1 + n_out, np.float32)  # dW1T | db1 | db2 [| dW2], flat
     dW1T = grad[:n_w].reshape(hidden, n_in)
     db1 = grad[n_w : n_w + hidden]
+    dw2 = grad[n_w + hidden + 1 :]
     inv_steps = np.float32(1.0 / steps)  # the mean's dF/dC, float32 1/T
     sq_sum = 0.0
     for r in range(n_critics):
         W, b = W1T[r], b1[r]
+        w2 = None if W2 is None else W2[r]
         rover = buffer_of[r]
         for m in range(n_items):  # random reads, many in flight
             slot = index[r, m]
@@ -305,7 +324,7 @@ def critic_update(
                 for t in range(steps):
                     for i in range(n_in):
                         xT[i, j * steps + t] = drawn[first + j, t, i]
-            _critic_forward(W, b, slope, xT, z, value, dims)
+            _critic_forward(W, b, w2, slope, xT, z, value, dims)
             db2 = np.float32(0.0)
             for j in range(batch):
                 at = j * steps
@@ -329,7 +348,7 @@ def critic_update(
                     else:
                         weight[at + t] = delta * inv_steps
                     db2 += weight[at + t]
-            _weighted_grad(W, slope, xT, z, weight, dW1T, db1, dims)
+            _weighted_grad(W, w2, slope, xT, z, weight, dW1T, db1, dw2, dims)
             grad[n_w + hidden] = db2
             # Eq. 7 / Eq. 9: the step, after the whole mini-batch
             t_adam = step + number + 1
@@ -338,6 +357,9 @@ def critic_update(
             m_r, v_r = moments[r, 0], moments[r, 1]
             _apply(W.reshape(-1), dW1T.reshape(-1), lr, adam, m_r[:n_w], v_r[:n_w], c1, c2)
             _apply(b, db1, lr, adam, m_r[n_w : n_w + hidden], v_r[n_w : n_w + hidden], c1, c2)
-            _apply(b2[r : r + 1], grad[n_w + hidden :], lr, adam, m_r[n_w + hidden :],
-                   v_r[n_w + hidden :], c1, c2)  # fmt: skip
+            end = n_w + hidden + 1
+            _apply(b2[r : r + 1], grad[n_w + hidden : end], lr, adam, m_r[n_w + hidden : end],
+                   v_r[n_w + hidden : end], c1, c2)  # fmt: skip
+            if w2 is not None:
+                _apply(w2, dw2, lr, adam, m_r[end:], v_r[end:], c1, c2)
     return sq_sum / max(n_critics * n_batches * batch, 1)
