@@ -26,12 +26,17 @@ from physrover.runs import find_runs, read_metrics
 OUT = Path("experiments/results")
 
 
-def label(run: plots.Run, fields: tuple[str, ...]) -> str:
-    parts = [run.fields["method"]]
+def variant(run: plots.Run, fields: tuple[str, ...]) -> str:
+    """``field=value ...`` of the given fields of a run (booleans lower-case)."""
+    parts = []
     for f in fields:
         value = run.fields[f]
         parts.append(f"{f}={str(value).lower() if isinstance(value, bool) else value}")
     return " ".join(parts)
+
+
+def label(run: plots.Run, fields: tuple[str, ...]) -> str:
+    return " ".join([run.fields["method"], *([variant(run, fields)] if fields else [])])
 
 
 def regroup(runs: list[plots.Run], fields: tuple[str, ...]) -> list[plots.Run]:
@@ -174,7 +179,10 @@ def main() -> None:
     summary_rows = []
     cell_sections: dict[str, list[str]] = {}  # sweep -> its lines of cells.md
 
-    def summarise(name: str, runs: list[plots.Run], cell_fields: tuple[str, ...], key=None):
+    def summarise(name: str, runs: list[plots.Run], cell_fields: tuple[str, ...], key=None,
+                  variant_fields: tuple[str, ...] = ()):  # fmt: skip
+        """Rows of runs.csv and a table of cells.md; the ``variant`` column names the
+        ``variant_fields`` a sweep varies beyond the method."""
         cells = defaultdict(list)
         for run in runs:
             rows = read_metrics(run.path / "metrics.csv")
@@ -186,6 +194,7 @@ def main() -> None:
                     "sweep": name,
                     "run": run.path.name,
                     "method": run.fields["method"],
+                    "variant": variant(run, variant_fields),
                     "feedback": run.fields["feedback"],
                     "n_req": run.fields["n_req"],
                     "n_rovers": run.fields["n_rovers"],
@@ -319,6 +328,15 @@ def main() -> None:
         regroup(runs, ("critic_step_input", "critic_top_k"))
         curves_and_finals("stronger-critic", runs, None, "max critic variants")
         summarise("stronger-critic", runs, ("critic_step_input", "critic_top_k", "n_req"))
+    # Issue 16: the optimistic ensemble (part 3) and trained output weights (part 2), each
+    # with variants of the paper's max critic (the latter with the paper's as its control).
+    for name, fields in (("stronger-critic-ensemble", ("critic_ensemble", "critic_optimism")),
+                         ("ablation-output-weights", ("critic_output_weights",))):  # fmt: skip
+        runs = finished_runs(name)
+        if runs:
+            regroup(runs, fields)
+            curves_and_finals(name, runs, None, "max critic variants")
+            summarise(name, runs, (*fields, "n_req"), variant_fields=fields)
 
     if (root / "ablation").exists():
         ablation_table(root / "ablation", args.last)
@@ -333,14 +351,15 @@ def main() -> None:
     if (OUT / "runs.csv").exists():
         with open(OUT / "runs.csv", newline="") as f:
             kept_rows = [row for row in csv.DictReader(f) if row["sweep"] not in cell_sections]
-        for row in kept_rows:  # written before runs.csv had the feedback column
+        for row in kept_rows:  # written before runs.csv had the feedback / variant columns
             row.setdefault("feedback", "D")
+            row.setdefault("variant", "")
     if (OUT / "cells.md").exists():
         for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
             name, body = section.split("\n", 1)
             cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
     order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics", "dpp", "ring-random",
-             "stronger-critic"]  # fmt: skip
+             "stronger-critic", "stronger-critic-ensemble", "ablation-output-weights"]  # fmt: skip
     rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
     with open(OUT / "runs.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))

@@ -20,7 +20,11 @@ import numpy as np
 
 from physrover.stats import hedges_g, learned_fraction, permutation_test, welch_t
 
-# (claim, sweep, cell A, cell B); a cell is (method, n_req, n_rovers).
+# (claim, sweep, cell A, cell B); a cell is (method, n_req, n_rovers), or (sweep, method,
+# n_req, n_rovers) for a cell of another sweep; a method run as a variant (runs.csv's
+# ``variant`` column) is named ``METHOD [VARIANT]``.
+ENSEMBLE = ("stronger-critic-ensemble", "ablation-output-weights")  # the same code, 0.2.0
+PAPER_CRITIC = "max-critic [critic_output_weights=fixed]"
 COMPARISONS = [
     *[(1, "fig4-7-long", ("average", 3, 15), (m, 3, 15)) for m in ("max-critic", "D")],
     *[(3, "fig4-7-long", ("average", n, 15), ("D", n, 15)) for n in (4, 5)],
@@ -47,6 +51,26 @@ COMPARISONS = [
     *[(6, "dpp", ("D on D++", n, 15), ("D", n, 15)) for n in (4, 5, 6)],
     *[(7, "dpp", ("max-critic on D++", n, 15), ("max-critic", n, 15)) for n in (4, 5, 6)],
     *[(7, "dpp", ("max-critic", n, 15), ("D on D++", n, 15)) for n in (4, 5, 6)],
+    # issue 16: the optimistic ensemble and trained output weights vs the paper's max critic
+    *[
+        (
+            8,
+            ENSEMBLE[0],
+            (f"max-critic [critic_ensemble=5 critic_optimism={b}]", n, 15),
+            (ENSEMBLE[1], PAPER_CRITIC, n, 15),
+        )
+        for b in (0.0, 1.0)
+        for n in (5, 6)
+    ],  # fmt: skip
+    *[
+        (
+            9,
+            ENSEMBLE[1],
+            ("max-critic [critic_output_weights=trained]", n, 15),
+            (PAPER_CRITIC, n, 15),
+        )
+        for n in (5, 6)
+    ],  # fmt: skip
 ]
 
 CLAIMS = {
@@ -56,6 +80,8 @@ CLAIMS = {
     5: "critics comparable or better than the average at every team size",
     6: "(beyond the paper) D++ rescues D under tight coupling",
     7: "(beyond the paper) D++ and the max critic: which helps, and do they combine",
+    8: "(beyond the paper) an ensemble of critics, plain or optimistic, vs the paper's critic",
+    9: "(ablation) trained hidden-to-output weights vs the paper's fixed ones",
 }
 
 
@@ -70,6 +96,8 @@ def load(path: Path) -> dict[tuple, list[float]]:
             method = row["method"]
             if row.get("feedback", "D") not in ("", "D"):  # e.g. "D on D++"
                 method = f"{method} on {row['feedback']}"
+            if row.get("variant"):
+                method = f"{method} [{row['variant']}]"
             key = (row["sweep"], method, int(row["n_req"]), int(row["n_rovers"]))
             cells[key].append(float(row["final_G"]))
     return cells
@@ -78,14 +106,16 @@ def load(path: Path) -> dict[tuple, list[float]]:
 def compare(cells: dict) -> list[dict]:
     rows = []
     for claim, sweep, a, b in COMPARISONS:
-        x, y = cells.get((sweep, *a)), cells.get((sweep, *b))
+        sweep_b = b[0] if len(b) == 4 else sweep
+        b = b[1:] if len(b) == 4 else b
+        x, y = cells.get((sweep, *a)), cells.get((sweep_b, *b))
         if not x or not y:
             continue
         t, df = welch_t(x, y)
         rows.append(
             {
                 "claim": claim,
-                "sweep": sweep,
+                "sweep": sweep if sweep_b == sweep else f"{sweep} vs {sweep_b}",
                 "A": f"{a[0]} n_req={a[1]} rovers={a[2]}",
                 "B": f"{b[0]} n_req={b[1]} rovers={b[2]}",
                 "n": f"{len(x)}/{len(y)}",
