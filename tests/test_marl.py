@@ -15,7 +15,7 @@ from physrover.config import ConfigError, DomainConfig
 from physrover.envs import RoverVectorEnv
 from physrover.learn.policies import PolicyLayout
 from physrover.marl.common import gae, run_episodes, soft_update
-from physrover.marl.maddpg import MADDPG, MADDPGConfig, ReplayBuffer, stacked_mlp
+from physrover.marl.maddpg import MADDPG, MADDPGConfig, ReplayBuffer, clip_per_rover, stacked_mlp
 from physrover.marl.mappo import MAPPO, MAPPOConfig
 from physrover.threads import pin_threads
 
@@ -138,7 +138,8 @@ def test_maddpg_actor_i_learns_only_through_critic_i():
     gen = torch.Generator().manual_seed(0)
     obs = torch.rand((16, 3, trainer.n_obs), generator=gen)
     actions = torch.rand((16, 3, 2), generator=gen) * 2 - 1
-    joint = trainer._own_actions_from_actors(obs, actions)
+    joint, pre = trainer._own_actions_from_actors(obs, actions)
+    torch.testing.assert_close(pre, trainer.actors(obs))
     for i in range(3):  # row i: rover i's own action from its actor, the others' given
         torch.testing.assert_close(joint[:, i, i], torch.tanh(trainer.actors(obs))[:, i])
         others = [j for j in range(3) if j != i]
@@ -148,6 +149,46 @@ def test_maddpg_actor_i_learns_only_through_critic_i():
     grad = trainer.actors[0].weight.grad  # (R, n_obs, hidden)
     assert grad[1].abs().sum() > 0
     assert grad[0].abs().sum() == 0 and grad[2].abs().sum() == 0
+
+
+def test_maddpg_actor_loss_adds_the_pre_tanh_penalty():
+    trainer = _maddpg(num_envs=2, seed=1)
+    gen = torch.Generator().manual_seed(3)
+    obs = torch.rand((16, 3, trainer.n_obs), generator=gen)
+    actions = torch.rand((16, 3, 2), generator=gen) * 2 - 1
+    step = torch.zeros(16, dtype=torch.int64)
+    joint, pre = trainer._own_actions_from_actors(obs, actions)
+    q = trainer._q(trainer.critics, obs, joint, step)
+    expected = -q.mean(0).sum() + 1e-3 * (pre**2).mean((0, 2)).sum()
+    torch.testing.assert_close(trainer.actor_loss(obs, actions, step), expected)
+    # a saturated actor is pulled back: the penalty's gradient shrinks its pre-activations
+    with torch.no_grad():
+        trainer.actors[-1].bias.fill_(5.0)
+    trainer.actors.zero_grad()
+    (1e-3 * (trainer.actors(obs) ** 2).mean((0, 2)).sum()).backward()
+    assert (trainer.actors[-1].bias.grad > 0).all()
+
+
+def test_gradients_are_clipped_rover_by_rover():
+    w = torch.zeros(3, 4, 2, requires_grad=True)
+    b = torch.zeros(3, 2, requires_grad=True)
+    w.grad = torch.ones(3, 4, 2) * torch.tensor([0.01, 1.0, 10.0])[:, None, None]
+    b.grad = torch.ones(3, 2) * torch.tensor([0.01, 1.0, 10.0])[:, None]
+    before = [w.grad.clone(), b.grad.clone()]
+    clip_per_rover([w, b], 0.5)
+    norms = torch.sqrt(w.grad.square().sum((1, 2)) + b.grad.square().sum(1))
+    torch.testing.assert_close(w.grad[0], before[0][0])  # under the limit: untouched
+    torch.testing.assert_close(norms[1:], torch.full((2,), 0.5), rtol=1e-5, atol=1e-6)
+    cosine = (w.grad[2] * before[0][2]).sum() / (w.grad[2].norm() * before[0][2].norm())
+    assert cosine > 0.9999  # the direction is kept
+
+
+def test_maddpg_uniform_warmup_actions():
+    trainer = _maddpg(num_envs=4, seed=2, warmup_actions="uniform", warmup_steps=10**6)
+    trainer.iteration()
+    acted = trainer.buffer.state()[0]["actions"][: trainer.buffer.size]
+    assert acted.min() >= -1.0 and acted.max() <= 1.0
+    assert abs(acted.std() - 1 / np.sqrt(3)) < 0.05  # uniform, not the near-zero actors
 
 
 # -- configs ---------------------------------------------------------------------------------

@@ -153,11 +153,28 @@ class MADDPGConfig(MARLConfig):
     warmup_steps: int = 25_600
     """Team transitions in the buffer before the first update (Lowe et al.: batch x 25);
     before it the actors act (with noise) but do not learn."""
+    warmup_actions: str = "policy"
+    """What acts before the first update: "policy" (the noisy actors, Lowe et al.) or
+    "uniform" (actions uniform in [-1, 1], as TD3-style implementations start)."""
+    action_penalty: float = 1e-3
+    """Weight of the mean squared pre-tanh actor output in the actor loss (Lowe et al.'s
+    code: 1e-3); keeps the actors out of tanh's saturation, where they stop learning."""
+    grad_clip: float = 0.5
+    """Each rover's actor and critic gradients are scaled to this norm at most (Lowe et
+    al.'s code: 0.5); 0: no clipping."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self.check_at_least(1, "critic_hidden", "batch_size", "buffer_capacity", "update_every")
         check(self.warmup_steps >= 0, "warmup_steps", f"must be >= 0, got {self.warmup_steps}")
+        check(
+            self.warmup_actions in ("policy", "uniform"),
+            "warmup_actions",
+            f"must be one of policy, uniform, got {self.warmup_actions!r}",
+        )
+        for name in ("action_penalty", "grad_clip"):
+            value = getattr(self, name)
+            check(value >= 0 and math.isfinite(value), name, f"must be >= 0, got {value}")
         check(
             self.buffer_capacity >= self.batch_size,
             "buffer_capacity",

@@ -4,7 +4,11 @@ Lowe et al. 2017, "Multi-Agent Actor-Critic for Mixed Cooperative-Competitive
 Environments" (NeurIPS): DDPG (Lillicrap et al. 2016) per agent, where agent i's critic
 Q_i(x, a_1, ..., a_R) sees every agent's observation and action while its actor
 mu_i(o_i) sees only its own observation; a replay buffer, target networks with soft
-updates, and Gaussian exploration noise on the actions (the paper's continuous-action form).
+updates, and Gaussian exploration noise on the actions (the paper's continuous-action form),
+with two details of Lowe et al.'s code: a penalty on the actors' squared pre-tanh outputs
+(``action_penalty``, 1e-3) and each network's gradient clipped to norm 0.5 (``grad_clip``).
+Without them our actors drifted into tanh's saturation on the paper's task (a flat critic,
+Adam turning its tiny gradients into full steps) and stopped learning.
 
 **Actors**: one per rover, the CCEA's policy shape n_obs -> ``hidden`` -> 2 (ReLU, then
 tanh), so each exports as a CCEA genome (:meth:`MADDPG.policy_genomes`). **Critics**: one
@@ -82,6 +86,19 @@ class StackedLinear(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return torch.einsum("...ri,rio->...ro", x, self.weight) + self.bias
+
+
+def clip_per_rover(params, max_norm: float) -> None:
+    """Scale each rover's slice of the gradients of stacked ``params`` (leading axis R) so
+    that its norm over all of them is at most ``max_norm`` (torch's ``clip_grad_norm_`` per
+    rover: factor ``min(1, max_norm / (norm + 1e-6))``)."""
+    grads = [p.grad for p in params if p.grad is not None]
+    if not grads or max_norm <= 0:
+        return
+    squares = sum(g.square().flatten(1).sum(1) for g in grads)  # (R,)
+    scale = (max_norm / (squares.sqrt() + 1e-6)).clamp(max=1.0)
+    for g in grads:
+        g.mul_(scale.view(-1, *([1] * (g.dim() - 1))))
 
 
 def stacked_mlp(
@@ -257,11 +274,24 @@ class MADDPG(Trainer):
         )
         return critics(x).squeeze(-1)
 
-    def _own_actions_from_actors(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+    def _own_actions_from_actors(
+        self, obs: torch.Tensor, actions: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """(B, R, R, 2) joint actions for the actor update: row i (critic i's input) has
         rover i's action from its current actor mu_i(o_i) (differentiable), the other
-        rovers' from ``actions`` (B, R, 2), the buffer (Lowe et al. 2017, Eq. 6)."""
-        return torch.where(self._eye, self._mu(self.actors, obs)[:, None], actions[:, None])
+        rovers' from ``actions`` (B, R, 2), the buffer (Lowe et al. 2017, Eq. 6); and the
+        actors' pre-tanh outputs (B, R, 2)."""
+        pre = self.actors(obs)
+        return torch.where(self._eye, torch.tanh(pre)[:, None], actions[:, None]), pre
+
+    def actor_loss(
+        self, obs: torch.Tensor, actions: torch.Tensor, step: torch.Tensor
+    ) -> torch.Tensor:
+        """Each actor's loss, summed over rovers: ``-Q_i(x, ..., mu_i(o_i), ...)`` (mean over
+        the batch) plus ``action_penalty`` times the mean squared pre-tanh output."""
+        joint, pre = self._own_actions_from_actors(obs, actions)
+        loss = -self._q(self.critics, obs, joint, step).mean(0).sum()
+        return loss + self.config.action_penalty * pre.square().mean((0, 2)).sum()
 
     def _update(self) -> tuple[float, float, float]:
         """One update of every critic, then every actor, then the targets; returns
@@ -285,12 +315,13 @@ class MADDPG(Trainer):
         critic_loss = (q - target).square().mean(0).sum()
         self.critic_optimizer.zero_grad()
         critic_loss.backward()
+        clip_per_rover(list(self.critics.parameters()), cfg.grad_clip)
         self.critic_optimizer.step()
 
-        joint = self._own_actions_from_actors(obs, actions)
-        actor_loss = -self._q(self.critics, obs, joint, step).mean(0).sum()
+        actor_loss = self.actor_loss(obs, actions, step)
         self.actor_optimizer.zero_grad()
         actor_loss.backward()  # also fills the critics' grads; zeroed before their next step
+        clip_per_rover(list(self.actors.parameters()), cfg.grad_clip)
         self.actor_optimizer.step()
 
         soft_update(self.target_actors, self.actors, cfg.tau)
@@ -308,8 +339,14 @@ class MADDPG(Trainer):
         cfg, T, E = self.config, self.steps, self.config.num_envs
         actions = torch.empty(T, E, self.n_rovers, self.n_act)
 
+        uniform = cfg.warmup_actions == "uniform" and self.buffer.size < cfg.warmup_steps
+
         def act(obs: np.ndarray, t: int) -> np.ndarray:
             with torch.no_grad():
+                if uniform:  # before the first update: uniform in [-1, 1]
+                    shape = (*obs.shape[:-1], self.n_act)
+                    actions[t] = torch.rand(shape, generator=self.gen) * 2.0 - 1.0
+                    return actions[t].numpy()
                 a = self._mu(self.actors, to_tensor(obs))
                 noise = torch.randn(a.shape, generator=self.gen)
                 actions[t] = (a + cfg.noise_std * noise).clamp(-1.0, 1.0)
