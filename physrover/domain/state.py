@@ -20,6 +20,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from physrover.domain.scoring import start_episode
+
 
 class WorldState(NamedTuple):
     """The state of E teams of R rovers and K POIs (see the module docstring)."""
@@ -65,9 +67,10 @@ class WorldState(NamedTuple):
         cls, n_teams: int, n_rovers: int, n_pois: int, steps: int = 0, n_obstacles: int = 0
     ) -> WorldState:
         """A state of the given sizes (``steps`` per episode), every array allocated
-        (C-contiguous) and zeroed."""
+        (C-contiguous) and zeroed, the scoring ones as at the start of an episode
+        (:func:`physrover.domain.scoring.start_episode`: no capture yet)."""
         e, r, k = n_teams, n_rovers, n_pois
-        return cls(
+        state = cls(
             rover_positions=np.zeros((e, r, 2)),
             rover_headings=np.zeros((e, r)),
             cos_h=np.zeros((e, r)),
@@ -80,6 +83,8 @@ class WorldState(NamedTuple):
             in_range=np.zeros((steps + 1, e, r, k), dtype=bool),
             captured=np.zeros((e, k), dtype=bool),
             captured_without=np.zeros((e, r, k), dtype=bool),
-            capture_step=np.full((e, k), -1, dtype=np.int64),
+            capture_step=np.zeros((e, k), dtype=np.int64),
             score=np.zeros(e),
         )
+        start_episode(state)
+        return state
