@@ -10,7 +10,10 @@ The on-disk cache lives in ``~/.cache/physrover/numba-KEY`` (under ``$XDG_CACHE_
 only a kernel's own file when it loads it from its cache, not the files of the kernels it
 calls: a kernel calling one from another module whose signature or body changed would load
 stale machine code (this happened: a test suite passed on a cache that a clean clone
-failed). Any change to the package's sources now compiles everything afresh once.
+failed). Any change to the package's sources now compiles everything afresh once; the
+directories of earlier versions are left in place (a few tens of MB each; delete them at
+will). Setting numba's cache directory is process-wide: another library's cached numba
+functions decorated in the same process after physrover's kernels land there too.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import os
 from pathlib import Path
 
 _PACKAGE = Path(__file__).parent
-_cache_configured = False
+_cache_dir: str | None = None
 
 
 def sources_key(root: Path = _PACKAGE) -> str:
@@ -41,13 +44,15 @@ def cache_dir() -> str:
 
 
 def _numba():
-    """numba, its cache directory set to :func:`cache_dir` before the first kernel."""
-    global _cache_configured
+    """numba, its cache directory set to :func:`cache_dir` for the kernel about to be
+    decorated (set again every time: numba re-reads its configuration from the environment
+    when a ``NUMBA_*`` variable changes, which would drop it)."""
+    global _cache_dir
     import numba
 
-    if not _cache_configured:
-        numba.config.CACHE_DIR = cache_dir()
-        _cache_configured = True
+    if _cache_dir is None:
+        _cache_dir = cache_dir()
+    numba.config.CACHE_DIR = _cache_dir
     return numba
 
 

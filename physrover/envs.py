@@ -260,6 +260,7 @@ class RoverVectorEnv(VectorEnv):
         if self._rngs is None:
             raise RuntimeError("call reset(seed=...) first: the generators are made there")
         obs = self._reset_world(None)
+        self._needs_reset = True  # also if the policy fails mid-episode: the next step resets
         play = getattr(policy, "play", None)
         if play is not None:
             play(self.world, obs, headings)

@@ -213,15 +213,13 @@ def load_champions(run_dir: Path, checkpoint: int | None = None) -> tuple[int, n
 
 
 def _kernels_cached() -> bool:
-    """Whether numba has cached compiled kernels on disk (else the first generation compiles).
+    """Whether numba has cached this version's compiled kernels on disk (else the first
+    generation compiles): their cache index files (``*.nbi``) under
+    :func:`physrover.compiled.cache_dir`."""
+    from physrover.compiled import cache_dir
 
-    numba writes its cache index (``*.nbi``) beside the source in ``__pycache__``, or under
-    ``NUMBA_CACHE_DIR`` when that is set.
-    """
-    root = os.environ.get("NUMBA_CACHE_DIR")
-    places = [Path(root)] if root else [Path(__file__).parent / d / "__pycache__"
-                                        for d in ("domain", "learn")]  # fmt: skip
-    return any(next(p.rglob("*kernels*.nbi"), None) for p in places if p.is_dir())
+    place = Path(cache_dir())
+    return place.is_dir() and next(place.rglob("*kernels*.nbi"), None) is not None
 
 
 def train(

@@ -266,6 +266,10 @@ def test_ensemble_options_are_checked():
     with pytest.raises(ConfigError, match="critic_ensemble: must be >= 1"):
         LearnConfig(critic_ensemble=0)
     assert LearnConfig(critic_ensemble=4, critic_optimism=1.0).critic_ensemble == 4
+    for field, value in (("critic_ensemble", 3), ("critic_output_weights", "trained"),
+                         ("critic_step_input", True)):  # fmt: skip
+        with pytest.raises(ConfigError, match=f"{field}: changes the fitness critic"):
+            LearnConfig(method="D", **{field: value})
 
 
 @pytest.mark.parametrize("use_max", [True, False])

@@ -169,16 +169,17 @@ def test_maddpg_actor_loss_adds_the_pre_tanh_penalty():
     assert (trainer.actors[-1].bias.grad > 0).all()
 
 
-def test_gradients_are_clipped_rover_by_rover():
+def test_gradients_are_clipped_rover_by_rover_and_tensor_by_tensor():
     w = torch.zeros(3, 4, 2, requires_grad=True)
     b = torch.zeros(3, 2, requires_grad=True)
     w.grad = torch.ones(3, 4, 2) * torch.tensor([0.01, 1.0, 10.0])[:, None, None]
-    b.grad = torch.ones(3, 2) * torch.tensor([0.01, 1.0, 10.0])[:, None]
+    b.grad = torch.ones(3, 2) * torch.tensor([0.01, 0.1, 10.0])[:, None]
     before = [w.grad.clone(), b.grad.clone()]
     clip_per_rover([w, b], 0.5)
-    norms = torch.sqrt(w.grad.square().sum((1, 2)) + b.grad.square().sum(1))
     torch.testing.assert_close(w.grad[0], before[0][0])  # under the limit: untouched
-    torch.testing.assert_close(norms[1:], torch.full((2,), 0.5), rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(b.grad[:2], before[1][:2])  # rover 1's bias norm 0.14: kept
+    torch.testing.assert_close(w.grad[1:].flatten(1).norm(dim=1), torch.full((2,), 0.5))
+    torch.testing.assert_close(b.grad[2].norm(), torch.tensor(0.5))
     cosine = (w.grad[2] * before[0][2]).sum() / (w.grad[2].norm() * before[0][2].norm())
     assert cosine > 0.9999  # the direction is kept
 
@@ -376,3 +377,20 @@ def test_maddpg_resume_is_bit_identical():
     trainer = _assert_resume_is_bit_identical(make, 6)
     assert trainer.updates > 0 and trainer.buffer.size == 300
     assert "extra/buffer/obs" in trainer.state()[0]
+
+
+def test_maddpg_updates_clip_both_networks(monkeypatch):
+    import physrover.marl.maddpg as module
+
+    seen = []
+    real = module.clip_per_rover
+
+    def spy(params, max_norm):
+        seen.append((len(params), max_norm))
+        real(params, max_norm)
+
+    monkeypatch.setattr(module, "clip_per_rover", spy)
+    trainer = _maddpg(num_envs=4, seed=3, warmup_steps=0, batch_size=8, update_every=50)
+    trainer.iteration()
+    assert trainer.updates > 0 and len(seen) == 2 * trainer.updates
+    assert {m for _, m in seen} == {0.5}

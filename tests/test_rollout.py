@@ -10,6 +10,7 @@ check :func:`physrover.learn.forward.tanh32` against float64 tanh.
 import numpy as np
 import pytest
 
+from physrover import RoverVectorEnv
 from physrover.config import DomainConfig, RunConfig
 from physrover.domain.world import RoverWorld
 from physrover.learn.ccea import CCEA
@@ -114,6 +115,13 @@ def test_bad_teams_are_clear_errors():
     obs = world.reset([np.random.default_rng(e) for e in range(3)])
     with pytest.raises(ValueError, match="NaN"):
         play_episode(world, obs, TeamPolicy(genomes, 7, 8))
+    assert world.t == 0  # left mid-episode, not done
+    env = RoverVectorEnv(3)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="NaN"):
+        env.play_episode(TeamPolicy(genomes, 7, 8))
+    _, rewards, *_ = env.step(np.zeros((3, 15, 2)))  # the next step resets, as after an end
+    assert env.world.t == 0 and not rewards.any()
 
 
 @pytest.mark.parametrize("method", list(FITNESS_METHODS))

@@ -88,6 +88,10 @@ class LearnConfig(ConfigBase):
     checkpoint_every: int = 100
     """Write a checkpoint every this many generations (and at the end)."""
 
+    def _has_critic(self) -> bool:
+        """Whether the fitness method has a fitness critic (its registry entry says)."""
+        return bool(getattr(FITNESS_METHODS[self.method], "critic", False))
+
     def __post_init__(self) -> None:
         self._coerce_fields()
         if self.method not in TRAINERS:
@@ -106,6 +110,14 @@ class LearnConfig(ConfigBase):
             "critic_top_k",
             f"a softer max is for the max critic with inexact updates, not {self.method!r}",
         )
+        for name, paper in (("critic_ensemble", 1), ("critic_optimism", 0.0),
+                            ("critic_output_weights", "fixed"),
+                            ("critic_step_input", False)):  # fmt: skip
+            check(
+                getattr(self, name) == paper or self.method in TRAINERS or self._has_critic(),
+                name,
+                f"changes the fitness critic, which {self.method!r} does not have",
+            )
         check(
             self.critic_optimism >= 0 and math.isfinite(self.critic_optimism),
             "critic_optimism",

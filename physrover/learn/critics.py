@@ -279,8 +279,8 @@ class FitnessCritic:
         return float(loss)
 
     def _moments_by_param(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Adam's m and v as [W1 (R, D, H), b1 (R, H), b2 (R,)] and, with trained output
-        weights, W2 (R, H) (the checkpoint layout)."""
+        """Adam's m and v as [W1 (N, D, H), b1 (N, H), b2 (N,)] and, with trained output
+        weights, W2 (N, H), N = R x ensemble critics (the checkpoint layout)."""
         n_rovers, hidden, n_w = self.moments.shape[0], self.settings.hidden, self.W_size
         out = []
         for which in (0, 1):

@@ -210,11 +210,16 @@ class MethodSpec:
     """One line: what the fitness of a policy is."""
     section: str
     """Where the paper describes it."""
+    critic: bool = False
+    """Whether it has a fitness critic (so the [learn] critic fields apply to it)."""
 
 
-def register_method(name: str, build, summary: str, section: str) -> MethodSpec:
-    """Add a fitness method under ``name`` (usable in TOML, ``--method`` and ``--set``)."""
-    return FITNESS_METHODS.register(name, MethodSpec(build, summary, section))
+def register_method(
+    name: str, build, summary: str, section: str, critic: bool = False
+) -> MethodSpec:
+    """Add a fitness method under ``name`` (usable in TOML, ``--method`` and ``--set``);
+    ``critic``: it has a fitness critic, which the [learn] critic fields configure."""
+    return FITNESS_METHODS.register(name, MethodSpec(build, summary, section, critic))
 
 
 def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
@@ -276,24 +281,28 @@ register_method(
     _critic,
     "fitness critic, mean over the trajectory, regular updates",
     "Sec. 3.1-3.2 (Eqs. 4, 6-8)",
+    critic=True,
 )
 register_method(
     "max-critic",
     _critic,
     "fitness critic, max over the trajectory, inexact updates (the paper's best)",
     "Sec. 3.1, 3.3 (Eqs. 3, 6, 9-10)",
+    critic=True,
 )
 register_method(
     "max-critic-regular",
     _critic,
     "fitness critic, max over the trajectory, regular updates",
     "Sec. 3.1-3.2 (Eqs. 3, 6-8)",
+    critic=True,
 )
 register_method(
     "mean-critic-inexact",
     _critic,
     "fitness critic, mean over the trajectory, inexact updates",
     "Sec. 3.1, 3.3 (Eqs. 4, 6, 9-10)",
+    critic=True,
 )
 
 

@@ -122,6 +122,6 @@ def play_episode(world: RoverWorld, obs: np.ndarray, policy, headings: bool = Tr
         world.scores_final_state, bool(headings), world.observations, world.actions,
         world.position_history, world.heading_history, *world.state,
     )  # fmt: skip
-    world.t = cfg.steps
-    if not ok:
+    if not ok:  # the world is left mid-episode (t unchanged): reset it
         raise ValueError("actions contain NaN")
+    world.t = cfg.steps

@@ -160,8 +160,8 @@ class MADDPGConfig(MARLConfig):
     """Weight of the mean squared pre-tanh actor output in the actor loss (Lowe et al.'s
     code: 1e-3); keeps the actors out of tanh's saturation, where they stop learning."""
     grad_clip: float = 0.5
-    """Each rover's actor and critic gradients are scaled to this norm at most (Lowe et
-    al.'s code: 0.5); 0: no clipping."""
+    """The gradient of each weight and bias of each rover's actor and critic is scaled to
+    this norm at most (Lowe et al.'s code clips each variable so, at 0.5); 0: no clipping."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

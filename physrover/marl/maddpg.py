@@ -6,7 +6,8 @@ Q_i(x, a_1, ..., a_R) sees every agent's observation and action while its actor
 mu_i(o_i) sees only its own observation; a replay buffer, target networks with soft
 updates, and Gaussian exploration noise on the actions (the paper's continuous-action form),
 with two details of Lowe et al.'s code: a penalty on the actors' squared pre-tanh outputs
-(``action_penalty``, 1e-3) and each network's gradient clipped to norm 0.5 (``grad_clip``).
+(``action_penalty``, 1e-3) and each variable's gradient clipped to norm 0.5 per agent
+(``grad_clip``; since physrover 0.2.0: an older run resumed by this release gains both).
 Without them our actors drifted into tanh's saturation on the paper's task (a flat critic,
 Adam turning its tiny gradients into full steps) and stopped learning.
 
@@ -89,16 +90,18 @@ class StackedLinear(nn.Module):
 
 
 def clip_per_rover(params, max_norm: float) -> None:
-    """Scale each rover's slice of the gradients of stacked ``params`` (leading axis R) so
-    that its norm over all of them is at most ``max_norm`` (torch's ``clip_grad_norm_`` per
-    rover: factor ``min(1, max_norm / (norm + 1e-6))``)."""
-    grads = [p.grad for p in params if p.grad is not None]
-    if not grads or max_norm <= 0:
+    """Clip the gradient of each of stacked ``params`` (leading axis R) rover by rover to
+    norm ``max_norm`` at most, each tensor on its own: rover r's slice of a weight or bias
+    is scaled by ``min(1, max_norm / norm)``, as Lowe et al.'s code clips each variable of
+    an agent's network (``tf.clip_by_norm``)."""
+    if max_norm <= 0:
         return
-    squares = sum(g.square().flatten(1).sum(1) for g in grads)  # (R,)
-    scale = (max_norm / (squares.sqrt() + 1e-6)).clamp(max=1.0)
-    for g in grads:
-        g.mul_(scale.view(-1, *([1] * (g.dim() - 1))))
+    for p in params:
+        if p.grad is None:
+            continue
+        norm = p.grad.flatten(1).norm(dim=1)  # (R,)
+        scale = torch.where(norm > max_norm, max_norm / norm.clamp(min=1e-30), 1.0)
+        p.grad.mul_(scale.view(-1, *([1] * (p.grad.dim() - 1))))
 
 
 def stacked_mlp(
@@ -193,9 +196,9 @@ class MADDPG(Trainer):
     ``MADDPG(config, domain)``; ``iteration()`` advances one iteration and returns its
     stats (:meth:`physrover.marl.common.Trainer.iteration`; ``critic_loss`` (mean over the
     rovers' critics of their squared TD error), ``actor_loss`` (mean over rovers of
-    -Q_i), ``q_mean``, averaged over this iteration's updates, NaN without any, and
-    ``updates``, the updates made so far); ``evaluate()``, ``state()`` / ``load_state()``
-    as there (the state includes the replay buffer).
+    -Q_i plus the pre-tanh penalty), ``q_mean``, averaged over this iteration's updates,
+    NaN without any, and ``updates``, the updates made so far); ``evaluate()``,
+    ``state()`` / ``load_state()`` as there (the state includes the replay buffer).
     """
 
     def __init__(self, config: MADDPGConfig, domain: DomainConfig | None = None):
