@@ -70,3 +70,49 @@ def test_evaluate_cli_writes_the_episodes(run_dir, tmp_path, capsys):
     assert [float(r["G"]) for r in rows] == expected
     with pytest.raises(ConfigError, match="episodes"):
         evaluate_run(run_dir, episodes=0)
+
+
+@pytest.mark.parametrize("motion", ["ideal", "physics"])
+def test_a_checkpoint_replays_the_runs_own_next_eval_G(tmp_path, motion):
+    """The champion saved after generation g, played step by step in a gymnasium vector env
+    from the evaluation teams' generators saved at that checkpoint, scores exactly the eval
+    G the run logged for generation g + 1 (which training computed with its own, compiled,
+    episode path)."""
+    import json
+
+    from physrover import RoverVectorEnv
+    from physrover.envs import generator_from_state
+    from physrover.runs import read_metrics
+
+    config = RunConfig().with_overrides(
+        {
+            "n_rovers": 4,
+            "n_req": 1,
+            "population": 6,
+            "steps": 20,
+            "method": "max-critic",
+            "seed": 8,
+            "poi_ring_radius": 5.0,
+            "eval_episodes": 5,
+            "checkpoint_every": 4,
+            "motion": motion,
+        }  # fmt: skip
+    )
+    run = train(config, tmp_path / "run", generations=4, progress=False)
+    meta = json.loads((run / "state.json").read_text())
+    _, champion = load_champions(run, 4)
+    train(None, run, resume=True, generations=5, progress=False)
+    logged = read_metrics(run / "metrics.csv")[4]["eval_G"]  # generation 5's row
+
+    eval_states = meta["env_rng"][-5:]  # the last eval_episodes teams are the evaluation
+    env = RoverVectorEnv(5, config=config.domain, fresh_teams=5)
+    env.reset(seed=0)
+    env.set_rng_states(eval_states)
+    obs, info = env.reset()  # continues the restored generators
+    layout = PolicyLayout(config.learn.hidden, env.single_observation_space.shape[-1])
+    act = layout.prepare(np.broadcast_to(champion, (5, *champion.shape)))
+    for _ in range(config.domain.steps):
+        obs, _, _, _, info = env.step(act(obs))
+    assert float(np.mean(info["G"])) == logged
+    assert 0 < logged < sum(config.domain.poi_values)  # some captures, not every POI always
+    assert generator_from_state(eval_states[0]).bit_generator.state == eval_states[0]
