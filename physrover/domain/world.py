@@ -20,7 +20,8 @@ Arrays carry the team axis first: positions (E, R, 2), headings (E, R), observat
 
 and records each rover's trajectory of (observation, action) pairs for the fitness critics.
 With the idealised model and the built-in sensor the whole step (1-3 and the records) is one
-compiled call, :func:`~physrover.domain.kernels.ideal_step`; otherwise the parts are called
+compiled call, :func:`~physrover.domain.kernels.ideal_step` (and a learner's whole episode one
+call, :mod:`physrover.learn.rollout`); otherwise the parts are called
 in turn (the physical model runs pymunk between the clip and the compiled sensing and
 scoring). Plain numpy versions of the same equations live in the tests
 (``tests/oracles.py``), which compare the two.

@@ -5,7 +5,9 @@ tanh output "to simulate motor saturation", paper Section 4.2; n_in = 8 with the
 sensor). A policy's parameters are one flat genome vector of length P, laid out as
 ``W1 (n_in x H) | b1 (H) | W2 (H x 2) | b2 (2)``;
 the populations are a (R, k, P) float32 array, so selection, copying and mutation are array
-operations and a batch of teams is evaluated with two batched matrix products.
+operations; a batch of teams plays through the compiled forward pass
+(:mod:`physrover.learn.forward`), a whole episode at once on a fused world
+(:mod:`physrover.learn.rollout`).
 """
 
 from __future__ import annotations
