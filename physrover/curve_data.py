@@ -86,7 +86,9 @@ def differing_fields(fields: list[dict], skip: tuple[str, ...] = ()) -> list[str
     return [
         name
         for name in (*_FIELD_ORDER, *extra)
-        if name not in left_out and len({format_value(f[name]) for f in fields if name in f}) > 1
+        if name not in left_out
+        and name.rsplit(".", 1)[-1] not in NOT_GROUPED  # a trainer's seed: ``maddpg.seed``
+        and len({format_value(f[name]) for f in fields if name in f}) > 1
     ]
 
 

@@ -338,3 +338,17 @@ def test_runs_are_grouped_by_the_fields_of_every_table(tmp_path):
         "max-critic collisions=false scenario=ring",
         "max-critic collisions=true scenario=ring-random",
     ]
+
+
+def test_a_trainers_seed_and_bookkeeping_do_not_split_groups():
+    from physrover.curve_data import differing_fields
+
+    fields = [
+        {"method": "maddpg", "n_req": 1, "maddpg.seed": 0, "maddpg.checkpoint_every": 100,
+         "maddpg.warmup_actions": "uniform"},
+        {"method": "maddpg", "n_req": 1, "maddpg.seed": 1, "maddpg.checkpoint_every": 50,
+         "maddpg.warmup_actions": "uniform"},
+        {"method": "maddpg", "n_req": 1, "maddpg.seed": 0, "maddpg.checkpoint_every": 100,
+         "maddpg.warmup_actions": "policy"},
+    ]  # fmt: skip
+    assert differing_fields(fields) == ["maddpg.warmup_actions"]
