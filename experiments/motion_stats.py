@@ -24,34 +24,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from physrover.envs import RoverVectorEnv  # noqa: E402
-from physrover.evaluate import EVAL_SEED  # noqa: E402
-from physrover.learn.policies import PolicyLayout  # noqa: E402
-from physrover.runs import load_champions, load_run_config  # noqa: E402
+from physrover.evaluate import MOTION_MODELS, play_champion  # noqa: E402
+from physrover.runs import load_run_config  # noqa: E402
 from physrover.stats import mean_ci  # noqa: E402
 
 OUT = Path(__file__).parent / "results"
-MODELS = {
-    "ideal": {"motion": "ideal"},
-    "physics": {"motion": "physics", "collisions": False},
-    "physics+collisions": {"motion": "physics", "collisions": True},
-}
-
-
-def play(run_dir: Path, changes: dict, episodes: int):
-    """The run's champion on ``episodes`` fresh episodes with the domain ``changes``; returns
-    the world at the end (its histories hold the episodes) and the domain."""
-    config = load_run_config(run_dir)
-    domain = config.domain.replace(**changes)
-    _, genomes = load_champions(run_dir)
-    env = RoverVectorEnv(episodes, config=domain, fresh_teams=episodes)
-    act = PolicyLayout(config.learn.hidden, env.single_observation_space.shape[-1]).prepare(
-        np.broadcast_to(genomes, (episodes, *genomes.shape))
-    )
-    obs, _ = env.reset(seed=EVAL_SEED)
-    for _ in range(domain.steps):
-        obs, *_ = env.step(act(obs))
-    return env.world, domain
 
 
 def episode_stats(world, domain) -> dict[str, np.ndarray]:
@@ -88,8 +65,9 @@ def main() -> None:
     rows, profiles = [], {}
     for run in args.runs:
         trained = load_run_config(run).domain.motion
-        for model, changes in MODELS.items():
-            stats = episode_stats(*play(run, changes, args.episodes))
+        for model, changes in MOTION_MODELS.items():
+            _, env = play_champion(run, args.episodes, **changes)
+            stats = episode_stats(env.world, env.config)
             row = {"run": run.name, "trained_under": trained, "played_under": model}
             for c in columns:
                 values = stats[c][~np.isnan(stats[c])]

@@ -20,16 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.evaluate import evaluate_run
+from physrover.evaluate import MOTION_MODELS, evaluate_run
 from physrover.runs import find_runs, load_run_config
 from physrover.stats import mean_ci
 
 OUT = Path(__file__).parent / "results"
-MODELS = {
-    "ideal": {"motion": "ideal"},
-    "physics": {"motion": "physics", "collisions": False},
-    "physics+collisions": {"motion": "physics", "collisions": True},
-}
+MODELS = MOTION_MODELS
 
 
 def trained_under(config) -> str:

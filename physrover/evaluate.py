@@ -27,6 +27,13 @@ EVAL_SEED = 1_000_000
 """Default seed of the first evaluation episode: far from the seeds training runs use, so the
 starts are fresh for any run."""
 
+MOTION_MODELS = {
+    "ideal": {"motion": "ideal"},
+    "physics": {"motion": "physics", "collisions": False},
+    "physics+collisions": {"motion": "physics", "collisions": True},
+}
+"""The domain changes of the three motion models a champion is cross-evaluated under."""
+
 
 @dataclass(frozen=True)
 class Evaluation:
@@ -83,17 +90,30 @@ def evaluate_run(
     champion plays (default: the last).
     """
     run_dir = Path(run_dir)
+    changes = {k: v for k, v in changes.items() if v is not None}
+    generation, env = play_champion(run_dir, episodes, seed, checkpoint, **changes)
+    return Evaluation(run_dir, generation, changes, seed, env.world.G)
+
+
+def play_champion(
+    run_dir: Path, episodes: int, seed: int = EVAL_SEED, checkpoint: int | None = None,
+    **changes: Any,
+) -> tuple[int, RoverVectorEnv]:  # fmt: skip
+    """Play the champion of ``run_dir`` (after generation ``checkpoint``, default the last)
+    on ``episodes`` fresh episodes (episode i starts like ``RoverEnv().reset(seed=seed +
+    i)``) with the domain ``changes``, step by step on the vector env; returns the
+    champion's generation and the env, at the episodes' end (its world holds their
+    records)."""
     if episodes < 1:
         raise ConfigError("episodes", f"must be >= 1, got {episodes}")
     config = load_run_config(run_dir)
-    changes = {k: v for k, v in changes.items() if v is not None}
     domain = config.domain.replace(**changes)
     generation, genomes = load_champions(run_dir, checkpoint)
     env = RoverVectorEnv(episodes, config=domain, fresh_teams=episodes)  # each its own start
     act = PolicyLayout(config.learn.hidden, env.single_observation_space.shape[-1]).prepare(
         np.broadcast_to(genomes, (episodes, *genomes.shape))
     )
-    obs, info = env.reset(seed=seed)
+    obs, _ = env.reset(seed=seed)
     for _ in range(domain.steps):
-        obs, _, _, _, info = env.step(act(obs))
-    return Evaluation(run_dir, generation, changes, seed, np.array(info["G"], dtype=float))
+        obs, *_ = env.step(act(obs))
+    return generation, env
