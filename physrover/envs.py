@@ -268,7 +268,6 @@ class RoverVectorEnv(VectorEnv):
             for _ in range(self.config.steps):
                 obs = self.world.step(policy(obs))
         self._last_G = self.world.G
-        self._needs_reset = True
         return self.world
 
     def _reset_world(self, options: dict[str, Any] | None) -> np.ndarray:

@@ -278,18 +278,25 @@ class FitnessCritic:
             self.adam_steps += s.batches
         return float(loss)
 
+    def _blocks(self) -> list:
+        """Where each parameter sits in a critic's flat moments ``W1T | b1 | b2 [| W2]``:
+        slices (an index for b2), in the order of ``critics.params()``."""
+        n_w, hidden = self.W_size, self.settings.hidden
+        blocks = [slice(0, n_w), slice(n_w, n_w + hidden), n_w + hidden]
+        if self.critics.W2 is not None:
+            blocks.append(slice(n_w + hidden + 1, None))
+        return blocks
+
     def _moments_by_param(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """Adam's m and v as [W1 (N, D, H), b1 (N, H), b2 (N,)] and, with trained output
         weights, W2 (N, H), N = R x ensemble critics (the checkpoint layout)."""
-        n_rovers, hidden, n_w = self.moments.shape[0], self.settings.hidden, self.W_size
+        n_critics, hidden = self.moments.shape[0], self.settings.hidden
         out = []
         for which in (0, 1):
             flat = self.moments[:, which]
-            W1T = flat[:, :n_w].reshape(n_rovers, hidden, self.pair_dim)
-            blocks = [np.swapaxes(W1T, 1, 2).copy(), flat[:, n_w : n_w + hidden].copy(),
-                      flat[:, n_w + hidden].copy()]  # fmt: skip
-            if self.critics.W2 is not None:
-                blocks.append(flat[:, n_w + hidden + 1 :].copy())
+            blocks = [flat[:, where].copy() for where in self._blocks()]
+            W1T = blocks[0].reshape(n_critics, hidden, self.pair_dim)
+            blocks[0] = np.swapaxes(W1T, 1, 2).copy()
             out.append(blocks)
         return out[0], out[1]
 
@@ -310,15 +317,12 @@ class FitnessCritic:
     def load(self, state: dict) -> None:
         for p, saved in zip(self.critics.params(), state["params"], strict=True):
             p[...] = saved
-        n_rovers, n_w = self.moments.shape[0], self.W_size
-        hidden = self.settings.hidden
+        n_critics = self.moments.shape[0]
         for which, key in enumerate(("adam_m", "adam_v")):
-            blocks = [np.asarray(a, dtype=np.float32) for a in state[key]]
+            saved = [np.asarray(a, dtype=np.float32) for a in state[key]]
+            saved[0] = np.swapaxes(saved[0], 1, 2).reshape(n_critics, self.W_size)
             flat = self.moments[:, which]
-            flat[:, :n_w] = np.swapaxes(blocks[0], 1, 2).reshape(n_rovers, n_w)
-            flat[:, n_w : n_w + hidden] = blocks[1]
-            flat[:, n_w + hidden] = blocks[2]
-            if self.critics.W2 is not None:
-                flat[:, n_w + hidden + 1 :] = blocks[3]
+            for where, values in zip(self._blocks(), saved, strict=True):
+                flat[:, where] = values
         self.adam_steps = int(state["adam_t"])
         self.buffer.load(state["buffer"])

@@ -167,11 +167,7 @@ class MADDPGConfig(MARLConfig):
         super().__post_init__()
         self.check_at_least(1, "critic_hidden", "batch_size", "buffer_capacity", "update_every")
         check(self.warmup_steps >= 0, "warmup_steps", f"must be >= 0, got {self.warmup_steps}")
-        check(
-            self.warmup_actions in ("policy", "uniform"),
-            "warmup_actions",
-            f"must be one of policy, uniform, got {self.warmup_actions!r}",
-        )
+        check_choice(self.warmup_actions, ("policy", "uniform"), "warmup_actions")
         for name in ("action_penalty", "grad_clip"):
             value = getattr(self, name)
             check(value >= 0 and math.isfinite(value), name, f"must be >= 0, got {value}")
