@@ -131,6 +131,9 @@ def _sense_quadrants(e, state, d_min_sq, radius_sq, obs, scratch):
         sn[i] = sin_h[e, i]
     for i in range(width):
         r0[i] = r1[i] = r2[i] = r3[i] = p0[i] = p1[i] = p2[i] = p3[i] = 0.0
+    # The two loops below differ only in the numerator, the self lane and the sums they add
+    # to; one helper called for both halved their speed (37 -> 69 us per 50-team step: the
+    # call kept LLVM from vectorising), so they stay written out.
     for j in range(n_rovers):  # the other rovers, numerator 1
         xj = positions[e, j, 0]
         yj = positions[e, j, 1]
