@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 from physrover import DomainConfig, RoverEnv, RoverVectorEnv
 from physrover.config import ConfigError
-from physrover.domain.physics import separate
+from physrover.domain.physics import pair_overlaps, separate
 from physrover.domain.world import RoverWorld, StartOverrides
 
 
@@ -80,13 +80,15 @@ def _min_distance(positions):
     return d.min()
 
 
+@pytest.mark.parametrize("substeps, bound", [(1, 0.25), (4, 0.05)])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_collisions_keep_rovers_apart(seed):
-    # Discrete collision detection: an overlap appears before it is resolved, so the overlap
-    # after a step is bounded by the closing distance of one physics step (two rovers at full
-    # speed sqrt(2) per step, head on) plus pymunk's slop; with substeps = 16 that is 0.18.
-    substeps, radius = 16, 0.2
-    bound = 2 * math.sqrt(2) / substeps + 0.01 * radius
+def test_collisions_keep_rovers_apart(seed, substeps, bound):
+    # The speculative pass resolves each impact before it happens, so even at one physics
+    # step per env step (rovers closing at up to 2 sqrt(2) units per physics step, seven
+    # diameters) the worst overlap at a step end, as a fraction of a diameter, stays within
+    # issue 14's bound of 25% (measured: up to 8% under these random commands, 1.5% at the
+    # default 4 substeps).
+    radius = 0.2
     env = RoverVectorEnv(10, motion="physics", collisions=True, substeps=substeps)
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
@@ -94,7 +96,7 @@ def test_collisions_keep_rovers_apart(seed):
     worst = 0.0
     for _ in range(50):
         env.step(rng.uniform(-1, 1, (10, 15, 2)))
-        worst = max(worst, 2 * radius - _min_distance(env.world.rover_positions))
+        worst = max(worst, pair_overlaps(env.world.rover_positions, radius).max())
     assert worst <= bound
 
 

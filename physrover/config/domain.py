@@ -66,7 +66,8 @@ class PhysicsConfig(ConfigBase):
     substeps: int = 4
     """Physics steps per environment step."""
     solver_iterations: int = 10
-    """Iterations of pymunk's contact solver per physics step."""
+    """Iterations of pymunk's contact solver per physics step (contacts with walls and
+    obstacles; rovers' contacts with each other are the compiled pass's)."""
     walls: bool = False
     """Square walls around each team's world."""
     wall_half_size: float = 30.0

@@ -35,28 +35,34 @@ idealised trajectory exactly (tested). With finite force a rover needs several s
 reach full speed, and its speed never exceeds the command (the velocity moves along the
 segment towards ``v*``).
 
-Collisions between rovers of a team are switched by ``collisions`` (shape filters, not
-callbacks). The scenario's obstacles (static discs, boxes and segments,
-:mod:`physrover.domain.obstacles`) and the walls collide with every rover; a speculative
-pass against the obstacles' capsules stops rovers closing into one as for rover pairs
-(below), so a full-speed hit ends a step within Chipmunk's slop of it (walls rely on
-pymunk's contacts alone: a crowd pushed against a wall may overlap it by up to ~0.2 units).
-Chipmunk detects contacts between discrete positions, so rovers closing at more
-than a diameter per physics step would pass through each other; before every physics step a
-compiled speculative-contact pass (:func:`physrover.domain.kernels.speculative_contacts`)
-removes the closing speed that would carry a pair into overlap, so contacts hold at any
-number of substeps (measured with ``experiments/contacts.py``: no pass-through head-on at any
-impact phase, worst overlap at a step end ~1% of a diameter in crowds). Walls (``walls``,
-static segments of a square of half side ``wall_half_size``) always collide with rovers.
-POIs are not bodies. With collisions on, spawn positions that
-overlap are pushed apart (deterministically) before the episode starts.
+Contacts between rovers of a team (switched by ``collisions``) are resolved by one
+compiled pass before every physics step (:func:`physrover.domain.physics_kernels.
+speculative_contacts`): for every pair it removes the closing speed that would carry the
+pair into overlap within the step, shared as momentum conservation shares it: frictionless,
+inelastic contacts between discs, resolved *before* the impact rather than after it (a
+speculative contact in a sequential-impulse solver, 4 sweeps over the pairs). Chipmunk,
+which detects contacts between discrete positions, lets rovers closing at more than a
+diameter per physics step pass through each other; this pass holds at any number of
+substeps (``experiments/contacts.py``: no pass-through head-on at any impact phase, worst
+overlap at a step end 1-3% of a diameter in crowds, 0.0% in steady pushing). Until
+physrover 0.2, Chipmunk also collided the rovers' shapes after the pass; that changed
+nothing measurable in contact accuracy (the same table either way) and was most of
+``Space.step``'s cost, so rovers are pymunk shapes now only when there is something
+static to hit: the scenario's obstacles (static discs, boxes and segments,
+:mod:`physrover.domain.obstacles`) and the walls (``walls``, static segments of a square of
+half side ``wall_half_size``) collide with every rover through Chipmunk's contacts, and a
+second pass against the obstacles' capsules (not the walls') stops a full-speed hit within
+Chipmunk's slop of them (a crowd pushed against a wall may overlap it by up to ~0.2 units).
+POIs are not bodies. With collisions on, spawn positions that overlap are pushed apart
+(deterministically) before the episode starts.
 
-Determinism: pymunk caches contact impulses between steps (warm starting). On every reset
-the rovers are first parked apart and the space is stepped ``collision_persistence`` times,
-which drops every cached contact, and the spatial hash index (rebuilt from the current
-positions each step, unlike the default tree, whose shape depends on history) makes the
-order of contacts a function of the positions alone. The same seed thus gives bit-identical
-episodes whatever ran before (tested); building a fresh space instead costs ~20 ms per reset.
+Determinism: pymunk caches contact impulses between steps (warm starting). With walls or
+obstacles, on every reset the rovers are first parked apart and the space is stepped
+``collision_persistence`` times, which drops every cached contact, and the spatial hash
+index (rebuilt from the current positions each step, unlike the default tree, whose shape
+depends on history) makes the order of contacts a function of the positions alone. The
+same seed thus gives bit-identical episodes whatever ran before (tested); building a fresh
+space instead costs ~20 ms per reset.
 """
 
 from __future__ import annotations
@@ -71,13 +77,7 @@ from physrover.config import DomainConfig
 from physrover.domain.dynamics import Dynamics, register_dynamics
 from physrover.domain.kernels import heading_trig
 from physrover.domain.obstacles import box_corners
-from physrover.domain.physics_kernels import (
-    control,
-    setpoints,
-    speculative_contacts,
-    speculative_obstacles,
-    wrap_angles,
-)
+from physrover.domain.physics_kernels import setpoints, substep, wrap_angles
 
 _ROVER = 0b01
 _WALL = 0b10
@@ -174,24 +174,27 @@ class PhysicsMotion(Dynamics):
         space.collision_slop = 0.01 * float(self.radius.min())
         # Rebuilt from positions every step: pair order independent of history (see above).
         space.use_spatial_hash(4.0 * largest, 4 * n_bodies + 1)
-        mask = (_ROVER if config.physics.collisions else 0) | _WALL
-        rover_filter = pymunk.ShapeFilter(categories=_ROVER, mask=mask)
+        static = []
+        if config.physics.walls:
+            static += self._walls(space.static_body)
+        static += self._obstacles(space.static_body)
+        # Rovers are shapes only when there is something static to hit: rover-rover
+        # contacts are the compiled pass's alone (see the module docstring).
+        rover_filter = pymunk.ShapeFilter(categories=_ROVER, mask=_WALL)
         bodies, shapes = [], []
         origins = self.offsets.reshape(-1, 2).repeat(config.n_rovers, axis=0)
         for k, origin in enumerate(origins):
             i = k % n  # the rover's index in its team
             body = pymunk.Body(float(self.mass[i]), float(self.moment[i]))
             body.position = tuple(origin)
-            shape = pymunk.Circle(body, float(self.radius[i]))
-            shape.filter = rover_filter
-            shape.elasticity = 0.0
-            shape.friction = 0.0
             bodies.append(body)
-            shapes.append(shape)
-        space.add(*bodies, *shapes)
-        if config.physics.walls:
-            space.add(*self._walls(space.static_body))
-        space.add(*self._obstacles(space.static_body))
+            if static:
+                shape = pymunk.Circle(body, float(self.radius[i]))
+                shape.filter = rover_filter
+                shape.elasticity = 0.0
+                shape.friction = 0.0
+                shapes.append(shape)
+        space.add(*bodies, *shapes, *static)
         # (E, M, 5) the obstacles' capsules in the space's frame, for the speculative pass
         capsules = config.scenario.obstacle_capsules()
         self.capsules = None
@@ -199,10 +202,19 @@ class PhysicsMotion(Dynamics):
             self.capsules = np.repeat(capsules[None], n_teams, axis=0)
             self.capsules[..., 0:2] += self.offsets
             self.capsules[..., 2:4] += self.offsets
-        self._static_shapes = bool(space.static_body.shapes)
+        # (6, R) what the compiled controller needs per rover; contacts only with collisions
+        self.limits = np.stack([self.max_dv, self.max_dw, self.alpha_max, self.mass,
+                                self.moment, self.radius])  # fmt: skip
+        self.contact_distances = self.contact if config.physics.collisions else None
+        self._static_shapes = bool(static)
         self.space = space
         self._buffer = pb.Buffer()
+        # Everything written to the space goes through one array, 6 floats per body, the
+        # space's static body last (at rest at the origin) when it has shapes: pymunk.batch
+        # writes every body of the space and would otherwise read past the buffer.
+        self._written = np.zeros(6 * (n_bodies + self._static_shapes))
         self._set_buffer = pb.Buffer()
+        self._set_buffer.set_float_buf(self._written)
 
     # -- layout ------------------------------------------------------------------------------
 
@@ -258,8 +270,7 @@ class PhysicsMotion(Dynamics):
 
     # pymunk.batch reads and writes every body of the space: the rovers, then the space's
     # static body once any static shape (walls, obstacles) is attached to it. Reads drop the
-    # static body; writes append its state (at rest at the origin), or set_space_bodies
-    # would read past the buffer into the static body.
+    # static body; writes leave it at rest at the origin (the tail of ``_written``).
 
     def _get(self, fields: pb.BodyFields, width: int) -> np.ndarray:
         self._buffer.clear()
@@ -269,12 +280,16 @@ class PhysicsMotion(Dynamics):
             self.n_teams, self.n_rovers, width
         )
 
-    def _set(self, fields: pb.BodyFields, values: np.ndarray) -> None:
-        data = np.ascontiguousarray(values, dtype=np.float64).ravel()
-        if self._static_shapes:
-            data = np.concatenate([data, np.zeros(data.size // (self.n_teams * self.n_rovers))])
-        self._set_buffer.set_float_buf(data)
+    def _set(self, fields: pb.BodyFields, values: np.ndarray | None = None) -> None:
+        """Write 6 floats per rover (``values`` (E, R, 6); None: already in ``_bodies()``)."""
+        if values is not None:
+            self._bodies()[:] = values
         pb.set_space_bodies(self.space, fields, self._set_buffer)
+
+    def _bodies(self) -> np.ndarray:
+        """(E, R, 6) the rovers' part of the array written to the space."""
+        n = self.n_teams * self.n_rovers * 6
+        return self._written[:n].reshape(self.n_teams, self.n_rovers, 6)
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """World positions (E, R, 2), headings (E, R), velocities (E, R, 2), spins (E, R)."""
@@ -304,14 +319,14 @@ class PhysicsMotion(Dynamics):
         if cfg.physics.collisions:
             contact = self.contact if np.ptp(self.radius) > 0 else 2.0 * float(self.radius[0])
             positions = separate(positions, contact, self.space.collision_slop)
-        # Drop every cached contact: park the rovers apart and let the contacts expire.
-        park = np.zeros((self.n_teams, self.n_rovers, 6))
-        park[..., 0] = 4.0 * float(self.radius.max()) * np.arange(self.n_rovers)
-        park[..., :2] += self.offsets
-        self._set(_ALL, park)
-        for _ in range(self.space.collision_persistence + 1):
-            self.space.step(1e-6)
-        start = np.zeros_like(park)
+        if self._static_shapes:  # drop every cached contact: park apart, let them expire
+            park = np.zeros((self.n_teams, self.n_rovers, 6))
+            park[..., 0] = 4.0 * float(self.radius.max()) * np.arange(self.n_rovers)
+            park[..., :2] += self.offsets
+            self._set(_ALL, park)
+            for _ in range(self.space.collision_persistence + 1):
+                self.space.step(1e-6)
+        start = np.zeros((self.n_teams, self.n_rovers, 6))
         start[..., :2] = positions + self.offsets
         start[..., 2] = headings
         self._set(_ALL, start)
@@ -327,18 +342,13 @@ class PhysicsMotion(Dynamics):
         shape = (self.n_teams, self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
         setpoints(actions, headings, self.max_speed, target_v, target_heading)
-        out = np.empty((*shape, 6))
-        for substep in range(cfg.physics.substeps):
+        out = self._bodies()
+        for k in range(cfg.physics.substeps):
             s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
-            control(s, target_v, target_heading, substep == 0, dt, self.max_dv, self.max_dw,
-                    self.alpha_max, self.mass, self.moment, out)  # fmt: skip
-            if cfg.physics.collisions:  # no pair may end this physics step passed into another
-                speculative_contacts(s[..., 0:2], out[..., 0:2], self.contact, self.mass, dt,
-                                     self.space.collision_slop, 4)  # fmt: skip
-            if self.capsules is not None:  # nor into an obstacle
-                speculative_obstacles(s[..., 0:2], out[..., 0:2], self.radius, self.capsules,
-                                      dt, self.space.collision_slop)  # fmt: skip
-            self._set(_MOTION | _FORCES, out)
+            substep(s, target_v, target_heading, k == 0, dt, self.limits,
+                    self.contact_distances, self.capsules, self.space.collision_slop,
+                    out)  # fmt: skip
+            self._set(_MOTION | _FORCES)
             self.space.step(dt)
         s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
         return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5]

@@ -1,9 +1,11 @@
 """Compiled kernels of the physical model's controller (see :mod:`physrover.domain.physics`).
 
-Everything the physical model computes around pymunk, in one call per physics step: the
-drive and steering controller (velocity and heading setpoints tracked with clipped force
-and torque), the speculative contacts, and the angle wrapping. pymunk keeps the bodies and
-integrates them; its state moves in and out as one (E, R, 6) array per physics step.
+Everything the physical model computes around pymunk, in one call per physics step
+(:func:`substep`): the drive and steering controller (velocity and heading setpoints
+tracked with clipped force and torque) and the contacts between rovers and against the
+static obstacles; and the angle wrapping. pymunk keeps the bodies and integrates them, and
+resolves the rovers' contacts with walls and obstacles; its state moves in and out as one
+(E, R, 6) array per physics step.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ def control(
         first: whether this is the step's first physics step: the drive acts as an impulse
             (written into the velocity, it moves the body within this physics step);
             afterwards as a force and torque (which Chipmunk applies after moving the body,
-            so its contact solver sees them first).
+            so the next physics step's contact pass sees them before they move it).
         out: (E, R, 6) written: vx, vy, w, fx, fy, torque to set before ``Space.step``.
     """
     for e in range(state.shape[0]):
@@ -191,3 +193,33 @@ def speculative_obstacles(positions, velocities, radius, capsules, dt, allowance
                 if u > limit:
                     velocities[e, i, 0] -= (u - limit) * nx
                     velocities[e, i, 1] -= (u - limit) * ny
+
+
+@jit
+def substep(state, target_v, target_heading, first, dt, limits, contact, capsules, allowance,
+            out):  # fmt: skip
+    """Everything before one ``Space.step``, in one call: :func:`control`, then the rovers'
+    contacts (:func:`speculative_contacts`, 4 sweeps; ``contact`` None: collisions off) and
+    the obstacles' (:func:`speculative_obstacles`; ``capsules`` None: no obstacles). Both
+    None arguments compile their branch out.
+
+    Args:
+        state: (E, R, 6) x, y, angle, vx, vy, w of the bodies now.
+        target_v: (E, R, 2), target_heading: (E, R): the step's setpoints.
+        first: whether this is the step's first physics step (see :func:`control`).
+        dt: the physics step, in environment steps.
+        limits: (6, R) per rover: max_dv, max_dw, alpha_max, mass, moment, radius.
+        contact: (R, R) contact distances r_i + r_j, or None.
+        capsules: (E, M, 5) obstacle capsules in the space's frame, or None.
+        allowance: the overlap a physics step may end with (Chipmunk's collision slop).
+        out: (E, R, 6) written: vx, vy, w, fx, fy, torque to set before ``Space.step``.
+    """
+    max_dv, max_dw, alpha_max = limits[0], limits[1], limits[2]
+    mass, moment, radius = limits[3], limits[4], limits[5]
+    control(state, target_v, target_heading, first, dt, max_dv, max_dw, alpha_max, mass,
+            moment, out)  # fmt: skip
+    positions, velocities = state[..., 0:2], out[..., 0:2]
+    if contact is not None:
+        speculative_contacts(positions, velocities, contact, mass, dt, allowance, 4)
+    if capsules is not None:
+        speculative_obstacles(positions, velocities, radius, capsules, dt, allowance)
