@@ -77,7 +77,7 @@ from physrover.config import DomainConfig
 from physrover.domain.dynamics import Dynamics, register_dynamics
 from physrover.domain.kernels import heading_trig
 from physrover.domain.obstacles import box_corners
-from physrover.domain.physics_kernels import setpoints, substep, wrap_angles
+from physrover.domain.physics_kernels import separate_teams, setpoints, substep, wrap_angles
 
 _ROVER = 0b01
 _WALL = 0b10
@@ -88,45 +88,22 @@ _FORCES = pb.BodyFields.FORCE | pb.BodyFields.TORQUE  # fx, fy, torque
 
 
 def separate(
-    positions: np.ndarray, min_distance: float, tolerance: float, max_iterations: int = 500
+    positions: np.ndarray, min_distance, tolerance: float, max_iterations: int = 500
 ) -> np.ndarray:
     """Push overlapping points of each team apart until no pair is closer than
-    ``min_distance - tolerance``.
+    ``min_distance - tolerance`` (a scalar, or (R, R) per pair).
 
     Each iteration moves both points of every overlapping pair apart by half the overlap
     plus ``tolerance`` along the line joining them (coincident points along a direction
-    fixed by their indices); only teams that still overlap are updated. Deterministic;
-    (E, R, 2) in, (E, R, 2) out.
+    fixed by their indices), all pairs from the positions at the iteration's start; a team
+    stops when none of its pairs overlaps by more than ``tolerance``
+    (:func:`~physrover.domain.physics_kernels.separate_teams`). Deterministic; (E, R, 2)
+    in, (E, R, 2) out.
     """
-    x, y = positions[..., 0].copy(), positions[..., 1].copy()
-    n_rovers = x.shape[1]
-    if n_rovers < 2:
-        return positions.copy()
-    off_diagonal = ~np.eye(n_rovers, dtype=bool)
-    index = np.arange(n_rovers)
-    tie_angle = 2.399963 * (index[:, None] + index[None, :])  # symmetric in i, j ...
-    tie_sign = np.sign(index[:, None] - index[None, :])  # ... times an antisymmetric sign
-    tie_x, tie_y = tie_sign * np.cos(tie_angle), tie_sign * np.sin(tie_angle)
-    active = np.arange(x.shape[0])
-    for _ in range(max_iterations):
-        dx = x[active, :, None] - x[active, None, :]  # (A, R, R): from j to i
-        dy = y[active, :, None] - y[active, None, :]
-        dist = np.sqrt(dx * dx + dy * dy)
-        overlap = np.maximum(min_distance - dist, 0.0) * off_diagonal
-        crowded = overlap.max(axis=(1, 2)) > tolerance
-        if not crowded.any():
-            break
-        active, dx, dy, dist, overlap = (
-            active[crowded],
-            dx[crowded],
-            dy[crowded],
-            dist[crowded],
-            overlap[crowded],
-        )
-        apart = dist > 1e-12
-        scale = np.where(overlap > 0, 0.5 * overlap + tolerance, 0.0) / np.where(apart, dist, 1.0)
-        x[active] += np.where(apart, dx * scale, tie_x * (scale > 0) * min_distance).sum(axis=2)
-        y[active] += np.where(apart, dy * scale, tie_y * (scale > 0) * min_distance).sum(axis=2)
+    n_rovers = positions.shape[1]
+    contact = np.broadcast_to(np.asarray(min_distance, dtype=np.float64), (n_rovers, n_rovers))
+    x, y = positions[..., 0].astype(np.float64), positions[..., 1].astype(np.float64)
+    separate_teams(x, y, np.ascontiguousarray(contact), float(tolerance), max_iterations)
     return np.stack([x, y], axis=-1)
 
 
@@ -306,7 +283,7 @@ class PhysicsMotion(Dynamics):
 
     def step(self, state, actions: np.ndarray) -> None:
         """Advance one environment step under the (E, R, 2) clipped commands."""
-        positions, headings, velocities = self.advance(state.rover_headings, actions)
+        positions, headings, velocities = self.advance(state, actions)
         state.rover_positions[:] = positions
         state.rover_headings[:] = headings
         state.rover_velocities[:] = velocities
@@ -332,16 +309,15 @@ class PhysicsMotion(Dynamics):
         self._set(_ALL, start)
         return positions
 
-    def advance(
-        self, headings: np.ndarray, actions: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Step the space through one environment step from the current ``headings`` under
-        the clipped ``actions`` (E, R, 2); returns the new positions, headings and
-        velocities (world units per step)."""
+    def advance(self, state, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Step the space through one environment step from ``state``'s headings (and their
+        cosines and sines) under the clipped ``actions`` (E, R, 2); returns the new
+        positions, headings and velocities (world units per step)."""
         cfg, dt = self.config, self.dt
         shape = (self.n_teams, self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
-        setpoints(actions, headings, self.max_speed, target_v, target_heading)
+        setpoints(actions, state.rover_headings, state.cos_h, state.sin_h, self.max_speed,
+                  target_v, target_heading)  # fmt: skip
         out = self._bodies()
         for k in range(cfg.physics.substeps):
             s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w

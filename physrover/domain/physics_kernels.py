@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from physrover.compiled import jit
 from physrover.domain.kernels import _move
 
@@ -31,18 +33,16 @@ def wrap_angles(angles, out):
 
 
 @jit
-def setpoints(actions, headings, max_speed, target_v, target_heading):
-    """The step's setpoints from (E, R, 2) clipped commands and (E, R) headings: the world
-    velocity (E, R, 2), the idealised model's move (world units per step) scaled down to
-    each rover's ``max_speed`` (R,; None: no limit) if longer, and the heading (E, R), its
-    direction (the
-    current heading for a zero command); the same arithmetic as the idealised step
-    (``kernels._move``)."""
+def setpoints(actions, headings, cos_h, sin_h, max_speed, target_v, target_heading):
+    """The step's setpoints from (E, R, 2) clipped commands and (E, R) headings (their
+    cosines and sines ``cos_h``, ``sin_h``): the world velocity (E, R, 2), the idealised
+    model's move (world units per step) scaled down to each rover's ``max_speed`` (R,; None:
+    no limit) if longer, and the heading (E, R), its direction (the current heading for a
+    zero command); the same arithmetic as the idealised step (``kernels._move``)."""
     for e in range(headings.shape[0]):
         for i in range(headings.shape[1]):
-            h = headings[e, i]
-            mx, my, new_heading = _move(math.cos(h), math.sin(h), h, actions[e, i, 0],
-                                        actions[e, i, 1], True)  # fmt: skip
+            mx, my, new_heading = _move(cos_h[e, i], sin_h[e, i], headings[e, i],
+                                        actions[e, i, 0], actions[e, i, 1], True)  # fmt: skip
             if max_speed is not None:  # compiled out without a speed limit
                 speed = math.hypot(mx, my)
                 if speed > max_speed[i]:
@@ -105,7 +105,9 @@ def speculative_contacts(positions, velocities, contact, mass, dt, allowance, it
     shares it (rover i takes m_j / (m_i + m_j) of it: half each for equal masses): an
     inelastic speculative contact.
     Pairs are visited in index order, ``iterations`` sweeps (for crowds, where one
-    correction changes another pair's speed). Coincident centres are left to Chipmunk.
+    correction changes another pair's speed), each over the pairs that could meet within
+    the step (listed once per team: positions do not change during the pass). Coincident
+    centres (no normal) are skipped: the spawn separation keeps them apart.
 
     Args:
         positions: (E, R, 2) centres at the start of the physics step.
@@ -116,6 +118,7 @@ def speculative_contacts(positions, velocities, contact, mass, dt, allowance, it
             Chipmunk still sees the contact and keeps it).
     """
     n_teams, n_rovers = positions.shape[0], positions.shape[1]
+    near = np.empty((n_rovers * (n_rovers - 1) // 2, 2), np.int64)
     widest = 0.0
     for i in range(n_rovers):
         for j in range(n_rovers):
@@ -128,30 +131,36 @@ def speculative_contacts(positions, velocities, contact, mass, dt, allowance, it
             v_max_sq = max(v_max_sq, v_sq)
         reach = widest + 2.0 * math.sqrt(v_max_sq) * dt
         reach_sq = reach * reach
+        n_near = 0  # the pairs within reach, in index order: the only ones the sweeps visit
+        for i in range(n_rovers):
+            for j in range(i + 1, n_rovers):
+                dx = positions[e, j, 0] - positions[e, i, 0]
+                dy = positions[e, j, 1] - positions[e, i, 1]
+                d_sq = dx * dx + dy * dy
+                if d_sq < reach_sq and d_sq >= 1e-24:
+                    near[n_near, 0], near[n_near, 1] = i, j
+                    n_near += 1
         for _ in range(iterations):
             changed = False
-            for i in range(n_rovers):
-                for j in range(i + 1, n_rovers):
-                    dx = positions[e, j, 0] - positions[e, i, 0]
-                    dy = positions[e, j, 1] - positions[e, i, 1]
-                    d_sq = dx * dx + dy * dy
-                    if d_sq >= reach_sq or d_sq < 1e-24:
-                        continue
-                    d = math.sqrt(d_sq)
-                    nx, ny = dx / d, dy / d
-                    u = (velocities[e, i, 0] - velocities[e, j, 0]) * nx + (
-                        velocities[e, i, 1] - velocities[e, j, 1]
-                    ) * ny
-                    limit = (d - contact[i, j] + allowance) / dt
-                    if u > limit:
-                        excess = u - limit
-                        share_i = excess * (mass[j] / (mass[i] + mass[j]))
-                        share_j = excess * (mass[i] / (mass[i] + mass[j]))
-                        velocities[e, i, 0] -= share_i * nx
-                        velocities[e, i, 1] -= share_i * ny
-                        velocities[e, j, 0] += share_j * nx
-                        velocities[e, j, 1] += share_j * ny
-                        changed = True
+            for k in range(n_near):
+                i, j = near[k, 0], near[k, 1]
+                dx = positions[e, j, 0] - positions[e, i, 0]
+                dy = positions[e, j, 1] - positions[e, i, 1]
+                d = math.sqrt(dx * dx + dy * dy)
+                nx, ny = dx / d, dy / d
+                u = (velocities[e, i, 0] - velocities[e, j, 0]) * nx + (
+                    velocities[e, i, 1] - velocities[e, j, 1]
+                ) * ny
+                limit = (d - contact[i, j] + allowance) / dt
+                if u > limit:
+                    excess = u - limit
+                    share_i = excess * (mass[j] / (mass[i] + mass[j]))
+                    share_j = excess * (mass[i] / (mass[i] + mass[j]))
+                    velocities[e, i, 0] -= share_i * nx
+                    velocities[e, i, 1] -= share_i * ny
+                    velocities[e, j, 0] += share_j * nx
+                    velocities[e, j, 1] += share_j * ny
+                    changed = True
             if not changed:
                 break
 
@@ -223,3 +232,41 @@ def substep(state, target_v, target_heading, first, dt, limits, contact, capsule
         speculative_contacts(positions, velocities, contact, mass, dt, allowance, 4)
     if capsules is not None:
         speculative_obstacles(positions, velocities, radius, capsules, dt, allowance)
+
+
+@jit
+def separate_teams(x, y, min_distance, tolerance, max_iterations):
+    """:func:`physrover.domain.physics.separate` in place on (E, R) coordinates ``x``,
+    ``y``, team by team; ``min_distance`` (R, R). Each pair's push is summed per point in
+    index order; a coincident pair (i, j) is pushed along the angle ``2.399963 (i + j)``,
+    ``sign(i - j)`` times ``min_distance``."""
+    n_teams, n_rovers = x.shape
+    push_x, push_y = np.empty(n_rovers), np.empty(n_rovers)
+    for e in range(n_teams):
+        for _ in range(max_iterations):
+            crowded = False
+            for i in range(n_rovers):
+                sx = sy = 0.0
+                for j in range(n_rovers):
+                    if j == i:
+                        continue
+                    dx, dy = x[e, i] - x[e, j], y[e, i] - y[e, j]  # from j to i
+                    dist = math.sqrt(dx * dx + dy * dy)
+                    overlap = max(min_distance[i, j] - dist, 0.0)
+                    crowded = crowded or overlap > tolerance
+                    if overlap <= 0.0:
+                        continue
+                    if dist > 1e-12:
+                        scale = (0.5 * overlap + tolerance) / dist
+                        sx += dx * scale
+                        sy += dy * scale
+                    else:
+                        side = (i > j) - (i < j)
+                        sx += side * math.cos(2.399963 * (i + j)) * min_distance[i, j]
+                        sy += side * math.sin(2.399963 * (i + j)) * min_distance[i, j]
+                push_x[i], push_y[i] = sx, sy
+            if not crowded:
+                break
+            for i in range(n_rovers):
+                x[e, i] += push_x[i]
+                y[e, i] += push_y[i]
