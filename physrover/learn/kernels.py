@@ -272,7 +272,9 @@ def critic_update(
     ``M // batch`` of them one after the other. Per entry the critic's values of its T pairs
     are aggregated, by their mean or (``use_max``) their maximum (the first, as
     ``np.argmax``): ``F = agg_t C(x_t)``; with ``delta = f - F`` (Eq. 8, or Eq. 10 for T = 1)
-    the critic takes the step along ``sum_entries delta * dF/dw`` after the whole mini-batch:
+    the critic takes the step along ``sum_entries delta * dF/dw`` after the whole mini-batch
+    (with the max, ``dF/dw`` is the maximising pair's gradient alone, so only those pairs
+    enter the gradient sums):
 
     - regular updates (Eqs. 6-8): entries are trajectories (T = steps);
     - inexact updates (Eqs. 9-10): entries are single pairs (T = 1, where both
@@ -301,6 +303,14 @@ def critic_update(
     z = np.empty((hidden, padded), np.float32)
     value = np.empty(padded, np.float32)
     weight = np.zeros(padded, np.float32)  # dF/dC(x_n) * delta of the pair's entry
+    # With the max over T > 1 pairs, only each entry's maximising pair has a gradient: those
+    # pairs alone (inputs, pre-activations, delta) go to the gradient sums, padded with
+    # zero weights.
+    compact = use_max and steps > 1
+    padded_max = -(-batch // PAD_PAIRS) * PAD_PAIRS
+    x_max = np.zeros((n_in, padded_max), np.float32)
+    z_max = np.zeros((hidden, padded_max), np.float32)
+    weight_max = np.zeros(padded_max, np.float32)
     n_w = hidden * n_in
     n_out = 0 if W2 is None else hidden
     grad = np.empty(n_w + hidden + 1 + n_out, np.float32)  # dW1T | db1 | db2 [| dW2], flat
@@ -342,13 +352,24 @@ def critic_update(
                     F /= np.float32(steps)
                 delta = drawn_feedback[first + j] - F  # Eq. 8 / Eq. 10
                 sq_sum += np.float64(delta) * np.float64(delta)
-                for t in range(steps):
-                    if use_max:
-                        weight[at + t] = delta if t == arg else np.float32(0.0)
-                    else:
-                        weight[at + t] = delta * inv_steps
-                    db2 += weight[at + t]
-            _weighted_grad(W, w2, slope, xT, z, weight, dW1T, db1, dw2, dims)
+                if compact:
+                    for i in range(n_in):
+                        x_max[i, j] = xT[i, at + arg]
+                    for u in range(hidden):
+                        z_max[u, j] = z[u, at + arg]
+                    weight_max[j] = delta
+                    db2 += delta
+                else:
+                    for t in range(steps):
+                        if use_max:
+                            weight[at + t] = delta if t == arg else np.float32(0.0)
+                        else:
+                            weight[at + t] = delta * inv_steps
+                        db2 += weight[at + t]
+            if compact:
+                _weighted_grad(W, w2, slope, x_max, z_max, weight_max, dW1T, db1, dw2, dims)
+            else:
+                _weighted_grad(W, w2, slope, xT, z, weight, dW1T, db1, dw2, dims)
             grad[n_w + hidden] = db2
             # Eq. 7 / Eq. 9: the step, after the whole mini-batch
             t_adam = step + number + 1
