@@ -272,34 +272,68 @@ def train(
     elif resume:
         _write_metrics(out / METRICS, [])  # started but never checkpointed: start over
 
-    best = max((r["eval_G"] for r in rows), default=float("nan"))
+    latest: list[GenerationStats] = []
+
+    def next_row() -> dict:
+        latest[:] = [ccea.run_generation()]
+        return asdict(latest[0])
+
+    after = (lambda: on_generation(latest[0])) if on_generation else None
+    write_rows(out, ccea, next_row, stats_header(), rows, total,
+               config.learn.checkpoint_every, log, bar, restart_clock=True,
+               after_row=after)  # fmt: skip
+    return out
+
+
+def write_rows(
+    out: Path,
+    learner,
+    next_row: Callable[[], dict],
+    header: list[str],
+    rows: list[dict],
+    total: int,
+    every: int,
+    log: TensorBoardLog | None,
+    bar: Progress | None,
+    restart_clock: bool = False,
+    after_row: Callable[[], None] | None = None,
+) -> None:
+    """The training loop of every learner (the CCEA, a gradient-based trainer): append
+    ``next_row()`` to metrics.csv until ``learner.generation`` reaches ``total``,
+    checkpointing every ``every`` generations and at the end (and once at all, for a run
+    already complete), with TensorBoard scalars and the progress bar (its best eval G
+    starting from ``rows``, the rows kept from before a resume; ``restart_clock``: its rate
+    counts from the end of the first generation, which compiles or loads the kernels);
+    ``after_row()`` is called once each row is written and checkpointed. Closes ``log`` and
+    ``bar``."""
+    best = max((r["eval_G"] for r in rows), default=math.nan)
     with open(out / METRICS, "a", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=stats_header())
-        first = True  # the rate and time left count from the end of the first generation
-        while ccea.generation < total:
-            stats = ccea.run_generation()
-            writer.writerow({k: _fmt(v) for k, v in asdict(stats).items()})
-            best = stats.eval_G if math.isnan(best) else max(best, stats.eval_G)
-            done = ccea.generation
-            if done % config.learn.checkpoint_every == 0 or done == total:
+        writer = csv.DictWriter(f, fieldnames=header)
+        first = restart_clock
+        while learner.generation < total:
+            row = next_row()
+            writer.writerow({k: _fmt(v) for k, v in row.items()})
+            if not math.isnan(row["eval_G"]):
+                best = row["eval_G"] if math.isnan(best) else max(best, row["eval_G"])
+            done = learner.generation
+            if done % every == 0 or done == total:
                 f.flush()
-                save_state(out, ccea)
+                save_state(out, learner)
             if log:
-                log.write(stats)
-            if on_generation:
-                on_generation(stats)
+                log.write_row(row)
+            if after_row:
+                after_row()
             if bar:
                 if first:
                     bar.restart_clock(done)
                     first = False
-                bar.update(done, **{"eval G": stats.eval_G, "best G": best})
+                bar.update(done, **{"eval G": row["eval_G"], "best G": best})
     if bar:
         bar.close()
     if log:
         log.close()
     if not (out / STATE_JSON).exists():
-        save_state(out, ccea)
-    return out
+        save_state(out, learner)
 
 
 class TensorBoardLog:
@@ -317,9 +351,6 @@ class TensorBoardLog:
                 "--tensorboard needs the tensorboard package: pip install 'physrover[tensorboard]'"
             ) from None
         self.writer = SummaryWriter(log_dir=str(out / "tensorboard"))
-
-    def write(self, stats: GenerationStats) -> None:
-        self.write_row(asdict(stats))
 
     def write_row(self, row: dict) -> None:
         """One metrics row ({column: value}, with ``generation`` the step)."""

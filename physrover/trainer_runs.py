@@ -13,7 +13,6 @@ critics' loss (MADDPG). The run's length is the trainer's ``total_episodes``.
 
 from __future__ import annotations
 
-import csv
 import math
 from pathlib import Path
 
@@ -25,13 +24,12 @@ from physrover.runs import (
     METRICS,
     STATE_JSON,
     TensorBoardLog,
-    _fmt,
     _write_metrics,
     load_run_config,
     load_state,
     prepare_run_dir,
     read_metrics,
-    save_state,
+    write_rows,
 )
 
 EXTRA_COLUMNS = ["episodes", "env_steps"]
@@ -78,27 +76,6 @@ def train_trainer(
     total = trainer.total_iterations
     label = f"{config.learn.method} iteration"
     bar = Progress(total, label, trainer.iterations, unit="it") if progress else None
-    best = max((r["eval_G"] for r in rows), default=math.nan)
-    every = config.learn.checkpoint_every
-    with open(out / METRICS, "a", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=metrics_header())
-        while trainer.iterations < total:
-            row = metrics_row(trainer.iteration())
-            writer.writerow({k: _fmt(v) for k, v in row.items()})
-            if not math.isnan(row["eval_G"]):
-                best = row["eval_G"] if math.isnan(best) else max(best, row["eval_G"])
-            done = trainer.iterations
-            if done % every == 0 or done == total:
-                f.flush()
-                save_state(out, trainer)
-            if log:
-                log.write_row(row)
-            if bar:
-                bar.update(done, **{"eval G": row["eval_G"], "best G": best})
-    if bar:
-        bar.close()
-    if log:
-        log.close()
-    if not (out / STATE_JSON).exists():
-        save_state(out, trainer)
+    write_rows(out, trainer, lambda: metrics_row(trainer.iteration()), metrics_header(), rows,
+               total, config.learn.checkpoint_every, log, bar)  # fmt: skip
     return out
