@@ -11,7 +11,10 @@ Three cases, each under the given config (default: physics with collisions, the 
   lateral components, 50 steps, seeds 0-19: worst and median overlap at step ends (pairs in
   contact);
 - pushing: two rovers started touching, pushing into each other for 30 steps: the overlap
-  at the end (steady contact).
+  at the end (steady contact);
+- column: ten rovers in a column driven into a box, and into the walls, for 30 steps: the
+  worst overlap of two rovers at a step end (the wall stops the front rover; the pass must
+  stop the rest behind it).
 
 Overlap is ``max(0, r_i + r_j - distance) / (r_i + r_j)``: a fraction of a diameter.
 The time per step is ``physrover bench world --motion physics``'s job.
@@ -71,6 +74,27 @@ def pushing(config: DomainConfig) -> dict:
     return {"steady": float(overlaps(info["rover_positions"], r).max())}
 
 
+def column(config: DomainConfig, into: str) -> dict:
+    """Ten rovers in a column, driven at full command for 30 steps into a box (``into =
+    "box"``, its face 2 units ahead of the front rover) or the walls (``"wall"``, half side
+    8): the worst overlap of any two rovers at a step end, over 3 teams."""
+    n, start_x = 10, np.linspace(-3.0, 3.0, 10) - 1.0
+    fields = {"scenario": "explicit", "poi_positions": [[0.0, 2.0]]}
+    if into == "box":
+        fields["obstacle_boxes"] = [[8.5, 0.0, 0.5, 3.0, 0.0]]
+    else:
+        fields.update(walls=True, wall_half_size=8.0)
+    cfg = config.replace(n_rovers=n, n_req=1, poi_values=(1.0,), steps=30, **fields)
+    env = RoverVectorEnv(3, config=cfg)
+    start = np.stack([start_x, np.linspace(-0.3, 0.3, n)], axis=-1)
+    env.reset(seed=0, options={"rover_positions": start, "rover_headings": np.zeros(n)})
+    worst = 0.0
+    for _ in range(cfg.steps):
+        _, _, _, _, info = env.step(np.tile([1.0, 0.0], (3, n, 1)))
+        worst = max(worst, overlaps(info["rover_positions"], cfg.physics.rover_radius).max())
+    return {"worst": float(worst)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
@@ -78,10 +102,12 @@ def main() -> None:
     fields = dict(parse_override(text) for text in args.set)
     config = DomainConfig(motion="physics").replace(collisions=True, **fields)
     h, c, p = head_on(config), crowd(config), pushing(config)
+    box, wall = column(config, "box"), column(config, "wall")
     print(
         f"head-on: {h['pass_throughs']}/{h['cases']} pass through, worst overlap "
         f"{100 * h['worst']:.0f}%; crowd: worst {100 * c['worst']:.0f}%, median in contact "
-        f"{100 * c['median_in_contact']:.1f}%; pushing: {100 * p['steady']:.1f}%"
+        f"{100 * c['median_in_contact']:.1f}%; pushing: {100 * p['steady']:.1f}%; column "
+        f"into a box: worst {100 * box['worst']:.1f}%, into a wall: {100 * wall['worst']:.1f}%"
     )
 
 

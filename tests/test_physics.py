@@ -241,7 +241,7 @@ def test_unequal_masses_share_a_speculative_contact_as_momentum_does():
     velocities = np.array([[[2.0, 0.0], [-2.0, 0.0]]])
     mass = np.array([1.0, 3.0])
     contact = np.full((2, 2), 0.4)
-    speculative_contacts(positions, velocities, contact, mass, 0.25, 0.0, 4)
+    speculative_contacts(positions, velocities, contact, mass, np.full(2, 0.2), None, 0.25, 0.0, 4)
     momentum = mass @ velocities[0, :, 0]
     assert momentum == pytest.approx(1.0 * 2.0 + 3.0 * -2.0, abs=1e-12)
     # The pair now closes exactly to contact within the physics step: (1 - 0.4) / 0.25.

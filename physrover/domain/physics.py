@@ -1,7 +1,8 @@
 """Physical rover motion: pymunk bodies with mass, finite force and torque, optional collisions.
 
-Every rover is a dynamic pymunk circle (radius ``rover_radius``, mass ``rover_mass``, the
-moment of inertia of a disc); these, ``max_force``, ``max_torque`` and ``max_speed`` may
+Every rover is a dynamic pymunk body (radius ``rover_radius``, mass ``rover_mass``, the
+moment of inertia of a disc; a circle shape too when there are walls or obstacles to hit);
+these, ``max_force``, ``max_torque`` and ``max_speed`` may
 differ from rover to rover (a list per rover in [physics]: a heterogeneous team). All E
 teams live in **one** ``pymunk.Space``, each team in its own cell of a grid whose spacing
 exceeds the distance rovers can travel in an episode, so teams never touch; state moves in
@@ -35,26 +36,27 @@ idealised trajectory exactly (tested). With finite force a rover needs several s
 reach full speed, and its speed never exceeds the command (the velocity moves along the
 segment towards ``v*``).
 
-Contacts between rovers of a team (switched by ``collisions``) are resolved by one
-compiled pass before every physics step (:func:`physrover.domain.physics_kernels.
-speculative_contacts`): for every pair it removes the closing speed that would carry the
-pair into overlap within the step, shared as momentum conservation shares it: frictionless,
-inelastic contacts between discs, resolved *before* the impact rather than after it (a
-speculative contact in a sequential-impulse solver, 4 sweeps over the pairs). Chipmunk,
-which detects contacts between discrete positions, lets rovers closing at more than a
-diameter per physics step pass through each other; this pass holds at any number of
-substeps (``experiments/contacts.py``: no pass-through head-on at any impact phase, worst
-overlap at a step end 1-3% of a diameter in crowds, 0.0% in steady pushing). Until
-physrover 0.2, Chipmunk also collided the rovers' shapes after the pass; that changed
-nothing measurable in contact accuracy (the same table either way) and was most of
-``Space.step``'s cost, so rovers are pymunk shapes now only when there is something
-static to hit: the scenario's obstacles (static discs, boxes and segments,
-:mod:`physrover.domain.obstacles`) and the walls (``walls``, static segments of a square of
-half side ``wall_half_size``) collide with every rover through Chipmunk's contacts, and a
-second pass against the obstacles' capsules (not the walls') stops a full-speed hit within
-Chipmunk's slop of them (a crowd pushed against a wall may overlap it by up to ~0.2 units).
-POIs are not bodies. With collisions on, spawn positions that overlap are pushed apart
-(deterministically) before the episode starts.
+Contacts are resolved by one compiled pass before every physics step
+(:func:`physrover.domain.physics_kernels.speculative_contacts`), between the rovers of a
+team (switched by ``collisions``) and between rovers and the static obstacles and walls:
+it removes the closing speed that would carry a pair into overlap within the step, shared
+between two rovers as momentum conservation shares it, all from a static obstacle's side:
+frictionless, inelastic contacts, resolved *before* the impact rather than after it (a
+speculative contact in a sequential-impulse solver, sweeping rover pairs then rovers
+against obstacles until nothing changes, at most 10 sweeps). Chipmunk, which detects
+contacts between discrete positions, lets rovers closing at more than a diameter per
+physics step pass through each other; the pass holds at any number of substeps
+(``experiments/contacts.py``: no pass-through head-on at any impact phase, worst overlap at
+a step end 1-3% of a diameter in crowds, 0.0% in steady pushing, and columns of rovers
+driven into a box or a wall). Until physrover 0.3, Chipmunk also collided the rovers'
+shapes with each other after the pass; in open space that changed nothing measurable in
+contact accuracy and was most of ``Space.step``'s cost, so rovers are pymunk shapes now
+only when there is something static to hit: the scenario's obstacles (static discs, boxes
+and segments, :mod:`physrover.domain.obstacles`) and the walls (``walls``, static segments
+of a square of half side ``wall_half_size``) are pymunk shapes too, and Chipmunk's
+contacts with them hold what the pass leaves within its slop. POIs are not bodies. With
+collisions on, spawn positions that overlap are pushed apart (deterministically) before
+the episode starts.
 
 Determinism: pymunk caches contact impulses between steps (warm starting). With walls or
 obstacles, on every reset the rovers are first parked apart and the space is stepped
@@ -172,8 +174,10 @@ class PhysicsMotion(Dynamics):
                 shape.friction = 0.0
                 shapes.append(shape)
         space.add(*bodies, *shapes, *static)
-        # (E, M, 5) the obstacles' capsules in the space's frame, for the speculative pass
+        # (E, M, 5) the obstacles' and walls' capsules in the space's frame, for the pass
         capsules = config.scenario.obstacle_capsules()
+        if config.physics.walls:
+            capsules = np.concatenate([capsules.reshape(-1, 5), self._wall_capsules()])
         self.capsules = None
         if len(capsules):
             self.capsules = np.repeat(capsules[None], n_teams, axis=0)
@@ -186,10 +190,14 @@ class PhysicsMotion(Dynamics):
         self._static_shapes = bool(static)
         self.space = space
         self._buffer = pb.Buffer()
-        # Everything written to the space goes through one array, 6 floats per body, the
-        # space's static body last (at rest at the origin) when it has shapes: pymunk.batch
-        # writes every body of the space and would otherwise read past the buffer.
-        self._written = np.zeros(6 * (n_bodies + self._static_shapes))
+        # Everything written to the space goes through one array, 6 floats per body of the
+        # space as pymunk.batch counts them: the rovers, then the space's static body (at
+        # rest at the origin), which pymunk adds to the space once anything has read
+        # ``space.static_body``; set_space_bodies would otherwise read past the array.
+        pb.get_space_bodies(space, pb.BodyFields.ANGLE, self._buffer)
+        self._written = np.zeros(6 * (len(self._buffer.float_buf()) // 8))
+        if len(self._written) < 6 * n_bodies:
+            raise RuntimeError("pymunk.batch does not see every rover body")
         self._set_buffer = pb.Buffer()
         self._set_buffer.set_float_buf(self._written)
 
@@ -207,15 +215,19 @@ class PhysicsMotion(Dynamics):
         grid = np.stack([index % cols, index // cols], axis=-1).astype(np.float64)
         return (spacing * grid)[:, None, :]
 
-    def _walls(self, static_body: pymunk.Body) -> list[pymunk.Segment]:
+    def _wall_capsules(self) -> np.ndarray:
+        """(4, 5) the walls, world frame: the sides of the square of half side
+        ``wall_half_size``, counter-clockwise, as segments of radius 0.05."""
         h = self.config.physics.wall_half_size
         corners = [(-h, -h), (h, -h), (h, h), (-h, h)]
+        return np.array([[*corners[k], *corners[(k + 1) % 4], 0.05] for k in range(4)])
+
+    def _walls(self, static_body: pymunk.Body) -> list[pymunk.Segment]:
         wall_filter = pymunk.ShapeFilter(categories=_WALL, mask=_ROVER)
         walls = []
         for ox, oy in self.offsets.reshape(-1, 2):
-            for k in range(4):
-                (ax, ay), (bx, by) = corners[k], corners[(k + 1) % 4]
-                seg = pymunk.Segment(static_body, (ox + ax, oy + ay), (ox + bx, oy + by), 0.05)
+            for ax, ay, bx, by, r in self._wall_capsules():
+                seg = pymunk.Segment(static_body, (ox + ax, oy + ay), (ox + bx, oy + by), r)
                 seg.filter = wall_filter
                 seg.elasticity = 0.0
                 seg.friction = 0.0
