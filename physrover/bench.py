@@ -6,6 +6,7 @@ Run through the CLI, e.g. ``physrover bench world``; pin one thread for comparab
 
 from __future__ import annotations
 
+import dataclasses
 import statistics
 import time
 from dataclasses import dataclass
@@ -91,6 +92,33 @@ def time_generation(config, generations: int = 3) -> float:
     return statistics.median(runs)
 
 
+def time_iteration(config, iterations: int = 3) -> float:
+    """Median seconds per iteration of a gradient-based trainer with ``config`` (after one
+    warm-up iteration), its updates running from the first iteration (``warmup_steps`` 0
+    where the trainer has a warm-up, which only collects): the steady state, where a run
+    spends nearly all its time. Evaluation episodes are played as the config says."""
+    from physrover.registry import TRAINERS
+
+    trainer_config = config.trainer
+    if hasattr(trainer_config, "warmup_steps"):
+        trainer_config = dataclasses.replace(trainer_config, warmup_steps=0)
+    trainer = TRAINERS[config.learn.method].load()(trainer_config, config.domain)
+    trainer.iteration()
+    runs = []
+    for _ in range(iterations):
+        start = time.perf_counter()
+        trainer.iteration()
+        runs.append(time.perf_counter() - start)
+    return statistics.median(runs)
+
+
+def time_step(config, repeats: int = 3) -> float:
+    """Seconds per generation (CCEA) or per iteration (a gradient-based trainer)."""
+    if config.trainer is not None:
+        return time_iteration(config, repeats)
+    return time_generation(config, repeats)
+
+
 @dataclass(frozen=True)
 class CellEstimate:
     """One cell of a sweep: its label, seconds per generation, runs and their total time."""
@@ -99,6 +127,8 @@ class CellEstimate:
     seconds_per_generation: float
     runs: int
     generations: int
+    unit: str = "gen"
+    """What ``generations`` counts: "gen" (CCEA generations) or "it" (a trainer's iterations)."""
 
     @property
     def run_seconds(self) -> float:
@@ -109,9 +139,10 @@ class CellEstimate:
         return self.run_seconds * self.runs
 
 
-def estimate_sweep(specs, timer=time_generation) -> list[CellEstimate]:
-    """Per cell (runs equal but for the seed), the time of one generation measured with
-    ``timer(config)``, times the cell's generations and seeds: what the sweep will cost."""
+def estimate_sweep(specs, timer=time_step) -> list[CellEstimate]:
+    """Per cell (runs equal but for the seed), the time of one generation (a trainer's
+    iteration) measured with ``timer(config)``, times the cell's generations (iterations)
+    and seeds: what the sweep will cost."""
     from physrover.config import RunConfig
 
     cells: dict[str, list] = {}
@@ -124,7 +155,11 @@ def estimate_sweep(specs, timer=time_generation) -> list[CellEstimate]:
         spec, config = members[0]
         label = spec.name.rsplit("_seed=", 1)[0]
         seconds = timer(config.with_overrides({"seed": 0}))
-        estimates.append(CellEstimate(label, seconds, len(members), config.learn.generations))
+        if config.trainer is None:
+            count, unit = config.learn.generations, "gen"
+        else:
+            count, unit = config.trainer.total_iterations, "it"
+        estimates.append(CellEstimate(label, seconds, len(members), count, unit))
     return estimates
 
 

@@ -170,16 +170,14 @@ def _bench_paper(args: argparse.Namespace, bench) -> int:
     for path in files:
         sweep = Sweep.load(path)
         specs = sweep.runs("runs/sweeps", seeds=args.seeds)
-        estimates = bench.estimate_sweep(
-            specs, timer=lambda c: bench.time_generation(c, generations=args.repeats)
-        )
+        estimates = bench.estimate_sweep(specs, timer=lambda c: bench.time_step(c, args.repeats))
         wall = bench.sweep_wall_time(estimates, args.workers)
         grand += wall
         print(f"{sweep.name}: {len(specs)} runs, {len(estimates)} cells")
         for e in sorted(estimates, key=lambda e: -e.total_seconds):
             per_gen = 1000 * e.seconds_per_generation
-            print(f"  {e.label:40s} {per_gen:7.1f} ms/gen x {e.generations} gen x {e.runs} "
-                  f"runs = {e.total_seconds / 60:6.1f} min")  # fmt: skip
+            print(f"  {e.label:40s} {per_gen:7.1f} ms/{e.unit} x {e.generations} {e.unit} x "
+                  f"{e.runs} runs = {e.total_seconds / 60:6.1f} min")  # fmt: skip
         print(f"  estimated wall time on {args.workers} workers: {wall / 3600:.2f} h")
     if len(files) > 1:
         print(f"all {len(files)} sweeps: {grand / 3600:.2f} h on {args.workers} workers")

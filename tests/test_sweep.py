@@ -173,3 +173,33 @@ def test_sweep_cost_estimate_arithmetic(tmp_path):
         max(total / 2, max(e.run_seconds for e in estimates))
     )
     assert sweep_wall_time(estimates, 1000) == pytest.approx(max(e.run_seconds for e in estimates))
+
+
+def test_sweep_cost_estimate_counts_a_trainers_iterations(tmp_path):
+    # A gradient-based trainer's cell costs its iterations (ceil(total_episodes / num_envs)),
+    # not generations, and is timed per iteration.
+    from physrover.bench import estimate_sweep
+
+    text = """
+[sweep]
+name = "trainer"
+seeds = 2
+
+[base.domain]
+n_rovers = 3
+
+[base.learn]
+method = "mappo"
+
+[grid]
+n_req = [1, 2]
+
+[[variants]]
+total_episodes = 100
+num_envs = 8
+"""
+    specs = _sweep(tmp_path, text).runs(tmp_path / "est")
+    estimates = estimate_sweep(specs, timer=lambda config: 0.5)
+    assert len(estimates) == 2
+    for e in estimates:
+        assert (e.generations, e.unit, e.runs, e.total_seconds) == (13, "it", 2, 13.0)
