@@ -77,19 +77,23 @@ def bench_train(config, methods, generations: int = 10) -> list[str]:
     return lines
 
 
+def _median_seconds(step, warm_up: int, repeats: int) -> float:
+    """Median seconds of ``repeats`` calls of ``step()`` after ``warm_up`` untimed ones."""
+    for _ in range(warm_up):
+        step()
+    runs = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        step()
+        runs.append(time.perf_counter() - start)
+    return statistics.median(runs)
+
+
 def time_generation(config, generations: int = 3) -> float:
     """Median seconds per generation of a run with ``config`` (after two warm-up ones)."""
     from physrover.learn.ccea import CCEA
 
-    ccea = CCEA(config)
-    for _ in range(2):
-        ccea.run_generation()
-    runs = []
-    for _ in range(generations):
-        start = time.perf_counter()
-        ccea.run_generation()
-        runs.append(time.perf_counter() - start)
-    return statistics.median(runs)
+    return _median_seconds(CCEA(config).run_generation, 2, generations)
 
 
 def time_iteration(config, iterations: int = 3) -> float:
@@ -103,13 +107,7 @@ def time_iteration(config, iterations: int = 3) -> float:
     if hasattr(trainer_config, "warmup_steps"):
         trainer_config = dataclasses.replace(trainer_config, warmup_steps=0)
     trainer = TRAINERS[config.learn.method].load()(trainer_config, config.domain)
-    trainer.iteration()
-    runs = []
-    for _ in range(iterations):
-        start = time.perf_counter()
-        trainer.iteration()
-        runs.append(time.perf_counter() - start)
-    return statistics.median(runs)
+    return _median_seconds(trainer.iteration, 1, iterations)
 
 
 def time_step(config, repeats: int = 3) -> float:
