@@ -42,7 +42,7 @@ def _distance_to_segment(points: np.ndarray, seg) -> np.ndarray:
     return np.array(out)
 
 
-def _aimed_runs(scenario, distance_to, steps=10):
+def _aimed_runs(scenario, distance_to, steps=10, collisions=True):
     """Rovers start 3.0-4.5 from the origin on 8 bearings (so impacts fall at every phase
     of a step), aimed at the origin or 0.6 to its side, driving at full speed; returns the
     closest any rover centre came to the obstacle, over every step end."""
@@ -56,7 +56,8 @@ def _aimed_runs(scenario, distance_to, steps=10):
                 headings.append(bearing + math.pi)
     n = len(starts)
     config = DomainConfig(scenario=scenario, n_rovers=1, n_req=1, poi_values=(1.0,),
-                          steps=steps, motion="physics")  # fmt: skip
+                          steps=steps, motion="physics",
+                          physics={"collisions": collisions})  # fmt: skip
     world = RoverWorld(config, n)
     world.reset([np.random.default_rng(e) for e in range(n)],
                 StartOverrides(np.array(starts)[:, None], np.array(headings)[:, None]))  # fmt: skip
@@ -67,15 +68,18 @@ def _aimed_runs(scenario, distance_to, steps=10):
     return worst, config.physics.rover_radius
 
 
+@pytest.mark.parametrize("collisions", [True, False])  # obstacles hold either way
 @pytest.mark.parametrize("kind", ["box", "segment"])
-def test_full_speed_impacts_stop_at_contact(kind):
+def test_full_speed_impacts_stop_at_contact(kind, collisions):
     if kind == "box":
         scenario = {"kind": "explicit", "poi_positions": [[0.0, 30.0]], "obstacle_boxes": [BOX]}
-        worst, radius = _aimed_runs(scenario, lambda p: _distance_to_box(p, BOX))
+        worst, radius = _aimed_runs(scenario, lambda p: _distance_to_box(p, BOX),
+                                    collisions=collisions)  # fmt: skip
     else:
         scenario = {"kind": "explicit", "poi_positions": [[0.0, 30.0]],
                     "obstacle_segments": [SEGMENT]}  # fmt: skip
-        worst, radius = _aimed_runs(scenario, lambda p: _distance_to_segment(p, SEGMENT))
+        worst, radius = _aimed_runs(scenario, lambda p: _distance_to_segment(p, SEGMENT),
+                                    collisions=collisions)  # fmt: skip
     # every rover centre stays a radius away, within Chipmunk's slop (1% of the radius)
     assert worst >= radius - 0.01 * radius - 1e-9
     assert worst <= radius + 0.05  # and some rover did reach it

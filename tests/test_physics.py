@@ -199,12 +199,14 @@ def test_check_env_and_vector_equivalence_under_physics():
             np.testing.assert_allclose(obs[i], o, rtol=1e-6, atol=1e-9)
 
 
-def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone():
+@pytest.mark.parametrize("collisions", [True, False])
+def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone(collisions):
     # Regression: with a static shape in the space, pymunk.batch also reads and writes the
     # static body, which crashed every step with walls (0.1.0) and would move the walls.
     # 12 teams (seeds 0-11): 6 drive straight at full speed with a constant turn, 6 with
     # random commands, so rovers meet the walls at many angles and in crowds.
-    env = RoverVectorEnv(12, motion="physics", walls=True, wall_half_size=5.0)
+    env = RoverVectorEnv(12, motion="physics", walls=True, wall_half_size=5.0,
+                         collisions=collisions)  # fmt: skip
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     for _ in range(50):
@@ -212,8 +214,9 @@ def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone():
         actions[6:] = rng.uniform(-1.0, 1.0, (6, 15, 2))
         env.step(actions)
     world = env.world
-    # No rover escapes (centres inside the square; crowds pushed against a wall overlap it by
-    # up to ~0.2 units, pymunk's contacts); before the fix they never got a step in.
+    # No rover escapes (centres inside the square, with or without rover collisions: the
+    # contact pass and pymunk's contacts hold walls either way); before the fix they never
+    # got a step in.
     reach = np.abs(world.position_history).max(axis=(0, 2, 3))  # (E,): each team's farthest
     assert reach.max() < 5.0 and reach[:6].min() > 4.5
     assert tuple(world.dynamics.space.static_body.position) == (0.0, 0.0)

@@ -43,14 +43,15 @@ it removes the closing speed that would carry a pair into overlap within the ste
 between two rovers as momentum conservation shares it, all from a static obstacle's side:
 frictionless, inelastic contacts, resolved *before* the impact rather than after it (a
 speculative contact in a sequential-impulse solver, sweeping rover pairs then rovers
-against obstacles until nothing changes, at most 10 sweeps). Chipmunk, which detects
-contacts between discrete positions, lets rovers closing at more than a diameter per
-physics step pass through each other; the pass holds at any number of substeps
-(``experiments/contacts.py``: no pass-through head-on at any impact phase, worst overlap at
-a step end 1-3% of a diameter in crowds, 0.0% in steady pushing, and columns of rovers
-driven into a box or a wall). Until physrover 0.3, Chipmunk also collided the rovers'
-shapes with each other after the pass; in open space that changed nothing measurable in
-contact accuracy and was most of ``Space.step``'s cost, so rovers are pymunk shapes now
+against obstacles until nothing changes, at most ``CONTACT_SWEEPS`` = 20 sweeps). Chipmunk,
+which detects contacts between discrete positions, lets rovers closing at more than a
+diameter per physics step pass through each other; the pass holds at any number of
+substeps (``experiments/contacts.py``: no pass-through head-on at any impact phase, worst
+overlap at a step end ~1% of a diameter in crowds, 0.0% in steady pushing, 0.6% for a
+column of rovers driven into a box or a wall at the default 4 substeps, 5.8% at 1). Until
+physrover 0.3, Chipmunk also collided the rovers' shapes with each other after the pass;
+in open space that changed nothing measurable in contact accuracy and was most of
+``Space.step``'s cost, so rovers are pymunk shapes now
 only when there is something static to hit: the scenario's obstacles (static discs, boxes
 and segments, :mod:`physrover.domain.obstacles`) and the walls (``walls``, static segments
 of a square of half side ``wall_half_size``) are pymunk shapes too, and Chipmunk's
@@ -306,8 +307,7 @@ class PhysicsMotion(Dynamics):
         collisions are on), facing ``headings``; returns the positions used."""
         cfg = self.config
         if cfg.physics.collisions:
-            contact = self.contact if np.ptp(self.radius) > 0 else 2.0 * float(self.radius[0])
-            positions = separate(positions, contact, self.space.collision_slop)
+            positions = separate(positions, self.contact, self.space.collision_slop)
         if self._static_shapes:  # drop every cached contact: park apart, let them expire
             park = np.zeros((self.n_teams, self.n_rovers, 6))
             park[..., 0] = 4.0 * float(self.radius.max()) * np.arange(self.n_rovers)

@@ -161,25 +161,26 @@ def speculative_contacts(positions, velocities, contact, mass, radius, capsules,
                         n_near += 1
         for _ in range(iterations):
             changed = False
-            for k in range(n_near):
-                i, j = near[k, 0], near[k, 1]
-                dx = positions[e, j, 0] - positions[e, i, 0]
-                dy = positions[e, j, 1] - positions[e, i, 1]
-                d = math.sqrt(dx * dx + dy * dy)
-                nx, ny = dx / d, dy / d
-                u = (velocities[e, i, 0] - velocities[e, j, 0]) * nx + (
-                    velocities[e, i, 1] - velocities[e, j, 1]
-                ) * ny
-                limit = (d - contact[i, j] + allowance) / dt
-                if u > limit:
-                    excess = u - limit
-                    share_i = excess * (mass[j] / (mass[i] + mass[j]))
-                    share_j = excess * (mass[i] / (mass[i] + mass[j]))
-                    velocities[e, i, 0] -= share_i * nx
-                    velocities[e, i, 1] -= share_i * ny
-                    velocities[e, j, 0] += share_j * nx
-                    velocities[e, j, 1] += share_j * ny
-                    changed = True
+            if contact is not None:  # compiled out without collisions
+                for k in range(n_near):
+                    i, j = near[k, 0], near[k, 1]
+                    dx = positions[e, j, 0] - positions[e, i, 0]
+                    dy = positions[e, j, 1] - positions[e, i, 1]
+                    d = math.sqrt(dx * dx + dy * dy)
+                    nx, ny = dx / d, dy / d
+                    u = (velocities[e, i, 0] - velocities[e, j, 0]) * nx + (
+                        velocities[e, i, 1] - velocities[e, j, 1]
+                    ) * ny
+                    limit = (d - contact[i, j] + allowance) / dt
+                    if u > limit:
+                        excess = u - limit
+                        share_i = excess * (mass[j] / (mass[i] + mass[j]))
+                        share_j = excess * (mass[i] / (mass[i] + mass[j]))
+                        velocities[e, i, 0] -= share_i * nx
+                        velocities[e, i, 1] -= share_i * ny
+                        velocities[e, j, 0] += share_j * nx
+                        velocities[e, j, 1] += share_j * ny
+                        changed = True
             if capsules is not None:
                 for i in range(n_rovers):
                     if _capsule_contact(positions, velocities, e, i, radius[i], capsules, dt,
