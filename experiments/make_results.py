@@ -308,6 +308,37 @@ def main() -> None:
             f"{final}: final score (last {args.last} generations)",
         )
 
+    # Issue 14: idealised vs physical motion at 5000 generations. The idealised twins (same
+    # method, n_req and seed) are fig4-7-long's runs; they are listed again under this
+    # sweep's name (motion "ideal") so its table compares the three models on equal seeds.
+    physical = finished_runs("physics-long")
+    if physical:
+        seeds = {r.fields["seed"] for r in physical}
+        methods = {r.fields["method"] for r in physical}
+        twins = [r for r in finished_runs("fig4-7-long")
+                 if r.fields["method"] in methods and r.fields["seed"] in seeds]  # fmt: skip
+        runs = physical + twins
+        for run in runs:
+            run.group = f"{run.fields['method']} {motion_label(run)}"
+        for n_req in sorted({r.fields["n_req"] for r in runs}):
+            plots.plot_curves(
+                plots.curve_table([r for r in runs if r.fields["n_req"] == n_req], smooth=100),
+                OUT / f"physics-long_curves_nreq{n_req}.png",
+                f"ideal vs physical motion, 5000 generations, n_req = {n_req}",
+            )
+        plots.plot_final(
+            plots.final_table(runs, "n_req", last=args.last),
+            OUT / "physics-long_final_vs_nreq.png",
+            "n_req",
+            f"ideal vs physical motion: final score (last {args.last} generations)",
+        )
+        summarise(
+            "physics-long",
+            runs,
+            ("method", "n_req", "motion"),
+            key=lambda r: f"{r.fields['method']} | {r.fields['n_req']} | {motion_label(r)}",
+        )
+
     # Issue 13: D++ as the feedback (experiment 1) and random POI layouts (experiment 2).
     runs = finished_runs("dpp")
     if runs:
@@ -358,8 +389,9 @@ def main() -> None:
         for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
             name, body = section.split("\n", 1)
             cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
-    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics", "dpp", "ring-random",
-             "stronger-critic", "stronger-critic-ensemble", "ablation-output-weights"]  # fmt: skip
+    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics", "physics-long", "dpp",
+             "ring-random", "stronger-critic", "stronger-critic-ensemble",
+             "ablation-output-weights"]  # fmt: skip
     rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
     with open(OUT / "runs.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))
