@@ -71,6 +71,19 @@ COMPARISONS = [
         )
         for n in (5, 6)
     ],  # fmt: skip
+    # issue 14: physical motion against the idealised twins (same seeds), and whether the
+    # max critic's lead over D survives it
+    *[
+        (10, "physics-long", (f"{m} ({model})", n, 15), (m, n, 15))
+        for m in ("D", "max-critic")
+        for model in ("physics", "physics+collisions")
+        for n in (3, 4, 5, 6)
+    ],  # fmt: skip
+    *[
+        (11, "physics-long", (f"max-critic ({model})", n, 15), (f"D ({model})", n, 15))
+        for model in ("physics", "physics+collisions")
+        for n in (3, 4, 5, 6)
+    ],  # fmt: skip
 ]
 
 CLAIMS = {
@@ -82,18 +95,21 @@ CLAIMS = {
     7: "(beyond the paper) D++ and the max critic: which helps, and do they combine",
     8: "(beyond the paper) an ensemble of critics, plain or optimistic, vs the paper's critic",
     9: "(ablation) trained hidden-to-output weights vs the paper's fixed ones",
+    10: "(issue 14) physical motion, without and with collisions, vs idealised (same seeds)",
+    11: "(issue 14) the max critic vs D under physical motion",
 }
 
 
 def load(path: Path) -> dict[tuple, list[float]]:
-    """{(sweep, method, n_req, n_rovers): [final score of each seed]} (idealised runs; a
-    method run on another feedback than D is named ``METHOD on FEEDBACK``)."""
+    """{(sweep, method, n_req, n_rovers): [final score of each seed]}; a method run on
+    another feedback than D is named ``METHOD on FEEDBACK``, under physical motion ``METHOD
+    (physics)`` or ``METHOD (physics+collisions)``."""
     cells: dict[tuple, list[float]] = defaultdict(list)
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
-            if row["motion"] != "ideal":
-                continue
             method = row["method"]
+            if row["motion"] != "ideal":
+                method = f"{method} ({row['motion']})"
             if row.get("feedback", "D") not in ("", "D"):  # e.g. "D on D++"
                 method = f"{method} on {row['feedback']}"
             if row.get("variant"):
