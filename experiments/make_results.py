@@ -129,20 +129,35 @@ def _finished(run_dir: Path) -> bool:
     return run_status(spec) == "done"
 
 
-def marl_table(sweep: Path, last: int) -> None:
-    """results/marl.{md,csv} and marl_curves_nreq*.png (finished runs only): the
-    gradient-based baselines' final eval G (mean of the last ``last`` iterations, 95% CI
-    over seeds), the share of seeds that learn, and the max critic after as many training
-    episodes (fig4-7's curves)."""
-    runs = [r for r in plots.load_runs(find_runs([sweep])) if len(r.eval_G)]
+def trainer_label(run: plots.Run) -> str:
+    """A gradient-based run's row: its method and, for MADDPG, its warm-up; a MADDPG run
+    whose config predates the pre-tanh penalty and gradient clipping (physrover 0.1: no
+    ``action_penalty`` in its [maddpg] table; loading it would fill in today's defaults) is
+    marked so, never pooled with the runs that had them."""
+    method = run.fields["method"]
+    if method != "maddpg":
+        return method
+    if "action_penalty" not in (run.path / "config.toml").read_text():
+        return "maddpg (0.1: no penalty, no clipping)"
+    return f"maddpg ({run.fields['maddpg.warmup_actions']} warm-up)"
+
+
+def marl_table(sweeps: list[Path], last: int) -> None:
+    """results/marl.{md,csv} and marl_curves_nreq*.png (finished runs of the gradient-based
+    sweeps, ``marl``, ``maddpg-check``, ``maddpg-grid``): each method's (:func:`trainer_label`)
+    final eval G (mean of the last ``last`` iterations, 95% CI over seeds), the share of
+    seeds that learn, and the max critic after as many training episodes (fig4-7's
+    curves)."""
+    runs = [r for r in plots.load_runs(find_runs(sweeps)) if len(r.eval_G)]
     runs = [r for r in runs if (r.path / "state.json").exists() and _finished(r.path)]
     cells = defaultdict(lambda: {"final": [], "episodes": []})
     for run in runs:
-        cell = cells[(run.fields["method"], run.fields["n_req"])]
+        run.group = trainer_label(run)
+        cell = cells[(run.group, run.fields["n_req"])]
         cell["final"].append(float(run.eval_G[-last:].mean()))
         cell["episodes"].append(int(run.episodes[-1]))
     for n_req in sorted({n for _, n in cells}):
-        subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
+        subset = [r for r in runs if r.fields["n_req"] == n_req]
         table = plots.curve_table(subset, smooth=20)
         plots.plot_curves(table, OUT / f"marl_curves_nreq{n_req}.png",
                           f"15 rovers, 4 POIs, n_req = {n_req}", x="episodes")  # fmt: skip
@@ -371,10 +386,11 @@ def main() -> None:
 
     if (root / "ablation").exists():
         ablation_table(root / "ablation", args.last)
-    if (root / "marl").exists():
-        marl_table(root / "marl", args.last)
+    marl_sweeps = [root / n for n in ("marl", "maddpg-check", "maddpg-grid") if (root / n).exists()]
+    if marl_sweeps:
+        marl_table(marl_sweeps, args.last)
     if not summary_rows:
-        if (root / "ablation").exists() or (root / "marl").exists():
+        if (root / "ablation").exists() or marl_sweeps:
             return
         raise SystemExit(f"no sweeps found under {root}")
     # Sweeps not present under --root keep their rows and tables from the previous run.
