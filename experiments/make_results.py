@@ -306,13 +306,16 @@ def main() -> None:
         runs = [r for r in plots.load_runs(find_runs([root / name])) if len(r.eval_G)]
         return [r for r in runs if _finished(r.path)]
 
-    def curves_and_finals(name: str, runs: list[plots.Run], curves: str | None, final: str):
-        """``NAME_curves_nreqN.png`` per n_req (titled ``curves`` + n_req; none if None) and
-        ``NAME_final_vs_nreq.png`` (titled ``final``), with their CSVs."""
+    def curves_and_finals(name: str, runs: list[plots.Run], curves: str | None, final: str,
+                          smooth: int = 20):  # fmt: skip
+        """``NAME_curves_nreqN.png`` per n_req (titled ``curves`` + n_req; none if None;
+        ``smooth``-generation moving means) and ``NAME_final_vs_nreq.png`` (titled
+        ``final``), with their CSVs."""
         if curves is not None:
             for n_req in sorted({r.fields["n_req"] for r in runs}):
+                subset = [r for r in runs if r.fields["n_req"] == n_req]
                 plots.plot_curves(
-                    plots.curve_table([r for r in runs if r.fields["n_req"] == n_req], smooth=20),
+                    plots.curve_table(subset, smooth=smooth),
                     OUT / f"{name}_curves_nreq{n_req}.png",
                     f"{curves}, n_req = {n_req}",
                 )
@@ -335,18 +338,8 @@ def main() -> None:
         runs = physical + twins
         for run in runs:
             run.group = f"{run.fields['method']} {motion_label(run)}"
-        for n_req in sorted({r.fields["n_req"] for r in runs}):
-            plots.plot_curves(
-                plots.curve_table([r for r in runs if r.fields["n_req"] == n_req], smooth=100),
-                OUT / f"physics-long_curves_nreq{n_req}.png",
-                f"ideal vs physical motion, 5000 generations, n_req = {n_req}",
-            )
-        plots.plot_final(
-            plots.final_table(runs, "n_req", last=args.last),
-            OUT / "physics-long_final_vs_nreq.png",
-            "n_req",
-            f"ideal vs physical motion: final score (last {args.last} generations)",
-        )
+        curves_and_finals("physics-long", runs, "ideal vs physical motion, 5000 generations",
+                          "ideal vs physical motion", smooth=100)  # fmt: skip
         summarise(
             "physics-long",
             runs,
