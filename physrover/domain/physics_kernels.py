@@ -222,7 +222,7 @@ def _capsule_contact(positions, velocities, e, i, radius, capsules, dt, allowanc
 def substep(state, target_v, target_heading, first, dt, limits, contact, capsules, allowance,
             out):  # fmt: skip
     """Everything before one ``Space.step``, in one call: :func:`control`, then the
-    contacts (:func:`speculative_contacts`, up to 10 sweeps): between rovers unless
+    contacts (:func:`speculative_contacts`, up to ``CONTACT_SWEEPS`` sweeps): between rovers unless
     ``contact`` is None (collisions off), against static capsules unless ``capsules`` is
     None. Both None arguments compile their branch out.
 
