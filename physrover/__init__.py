@@ -19,7 +19,7 @@ from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
 from physrover.learn import fitness as _fitness  # noqa: F401  (fitness methods)
 from physrover.marl import configs as _trainers  # noqa: F401  (trainers; no torch import)
 
-__version__ = "0.3.0"
+__version__ = "0.4.0"
 __all__ = [
     "ConfigError",
     "DomainConfig",

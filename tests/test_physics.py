@@ -281,3 +281,70 @@ def test_a_heterogeneous_team_keeps_each_rovers_body_and_speed():
         DomainConfig(n_rovers=3, physics={"rover_mass": [1.0, 2.0]})
     with pytest.raises(ConfigError, match="max_speed: must be > 0"):
         DomainConfig(physics={"max_speed": 0.0})
+
+
+def _episodes(integrator, n_teams=4, **physics):
+    """Positions, headings and velocities after every step, and G, of two episodes of
+    random commands under the given physics (15 rovers)."""
+    cfg = DomainConfig(n_rovers=15, n_req=3, steps=30, motion="physics",
+                       physics=dict(integrator=integrator, **physics))  # fmt: skip
+    world, rng, out = RoverWorld(cfg, n_teams), np.random.default_rng(1), []
+    for episode in range(2):
+        world.reset([np.random.default_rng(10 * episode + e) for e in range(n_teams)])
+        for _ in range(30):
+            world.step(rng.uniform(-1.0, 1.0, (n_teams, 15, 2)))
+            s = world.state
+            out += [s.rover_positions.copy(), s.rover_headings.copy(), s.rover_velocities.copy()]
+        out.append(world.G.copy())
+    return world, out
+
+
+@pytest.mark.parametrize("substeps", [1, 4])
+@pytest.mark.parametrize("collisions", [True, False])
+@pytest.mark.parametrize("mixed", [False, True])
+def test_open_space_compiled_step_is_pymunks_to_the_last_bit(substeps, collisions, mixed):
+    # In open space the compiled step replaces pymunk's (integrator "auto"): the same
+    # trajectories, bit for bit, with and without contacts, for equal and mixed bodies.
+    mixed_fields = dict(rover_mass=[1.0, 2.0, 0.5] * 5, max_force=[0.5, 1.0, 2.0] * 5,
+                        max_speed=[1.0, 0.5, 2.0] * 5) if mixed else {}  # fmt: skip
+    fields = dict(substeps=substeps, collisions=collisions, **mixed_fields)
+    reference, expected = _episodes("pymunk", **fields)
+    compiled, got = _episodes("auto", **fields)
+    assert reference.dynamics.uses_pymunk and not compiled.dynamics.uses_pymunk
+    assert compiled.dynamics.space is None  # no pymunk space at all in open space
+    for a, b in zip(expected, got, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert np.abs(expected[-2]).max() > 0.1  # the rovers moved: not a trivial equality
+
+
+def test_the_integrate_kernel_is_chipmunks_step_of_a_free_body():
+    # One free pymunk body against physics_kernels.integrate, for random velocities, forces,
+    # masses and time steps: positions move with the written velocity, then the force acts.
+    import pymunk
+
+    from physrover.domain.physics_kernels import integrate
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        mass, moment, dt = rng.uniform(0.1, 5.0), rng.uniform(0.1, 5.0), 1.0 / rng.integers(1, 9)
+        x, y, angle, vx, vy, w, fx, fy, torque = rng.normal(0.0, 3.0, 9)
+        space = pymunk.Space()
+        body = pymunk.Body(mass, moment)
+        body.position, body.angle = (x, y), angle
+        body.velocity, body.angular_velocity = (vx, vy), w
+        body.force, body.torque = (fx, fy), torque
+        space.add(body)
+        space.step(dt)
+        state = np.array([[[x, y, angle, 0.0, 0.0, 0.0]]])
+        written = np.array([[[vx, vy, w, fx, fy, torque]]])
+        integrate(state, written, dt, np.array([1.0 / mass]), np.array([1.0 / moment]))
+        got = state[0, 0]
+        assert (got[0], got[1], got[2]) == (*body.position, body.angle)
+        assert (got[3], got[4], got[5]) == (*body.velocity, body.angular_velocity)
+
+
+def test_pymunk_steps_the_bodies_whenever_something_static_is_there():
+    walls = RoverWorld(DomainConfig(n_rovers=3, motion="physics", physics={"walls": True}), 2)
+    assert walls.dynamics.uses_pymunk and walls.dynamics.space is not None
+    with pytest.raises(ConfigError, match="integrator"):
+        DomainConfig(motion="physics", physics=dict(integrator="euler"))

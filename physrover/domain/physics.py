@@ -1,13 +1,21 @@
 """Physical rover motion: pymunk bodies with mass, finite force and torque, optional collisions.
 
-Every rover is a dynamic pymunk body (radius ``rover_radius``, mass ``rover_mass``, the
-moment of inertia of a disc; a circle shape too when there are walls or obstacles to hit);
-these, ``max_force``, ``max_torque`` and ``max_speed`` may
-differ from rover to rover (a list per rover in [physics]: a heterogeneous team). All E
-teams live in **one** ``pymunk.Space``, each team in its own cell of a grid whose spacing
-exceeds the distance rovers can travel in an episode, so teams never touch; state moves in
-and out of the space with ``pymunk.batch`` as arrays, never with a Python loop over rovers
-or teams.
+Every rover is a rigid disc body (radius ``rover_radius``, mass ``rover_mass``, the moment
+of inertia of a disc); these, ``max_force``, ``max_torque`` and ``max_speed`` may differ
+from rover to rover (a list per rover in [physics]: a heterogeneous team). All E teams live
+in **one** frame, each team in its own cell of a grid whose spacing exceeds the distance
+rovers can travel in an episode, so teams never touch.
+
+Who integrates the bodies (``[physics] integrator``): with walls or obstacles, pymunk: every
+rover is a dynamic ``pymunk.Body`` with a circle shape in one ``pymunk.Space``, and state
+moves in and out of the space with ``pymunk.batch`` as arrays, never with a Python loop over
+rovers or teams. In open space (the default scenario) a pymunk step of bodies that have
+nothing to collide with is semi-implicit Euler and nothing else, so the same arithmetic
+runs compiled (:func:`physrover.domain.physics_kernels.integrate`, a whole environment step
+in one call) and gives pymunk's trajectories to the last bit (tested against pymunk, with
+and without rover contacts, for equal and mixed bodies) in half the time: until physrover
+0.4 more than half of the physical step was moving state in and out of pymunk.
+``integrator = "pymunk"`` steps pymunk in open space too.
 
 Units: lengths in world units, time in environment steps (one step = 1 time unit, split
 into ``substeps`` physics steps of ``dt = 1 / substeps``), forces in mass x units / step^2.
@@ -28,13 +36,14 @@ step. In every physics step:
   (the fastest approach that can still brake without overshoot, ``alpha_max = max_torque / I``).
 
 The force and torque are applied as the velocity change they cause over the physics step
-(``dv = F dt / m``, written with ``pymunk.batch``) *before* ``Space.step``: chipmunk
-integrates positions before velocities, so a force written to ``Body.force`` would move the
-body only one physics step later. Applied this way, the integration is semi-implicit Euler
-and, in the limit of unbounded force with one substep, a physical rover follows the
-idealised trajectory exactly (tested). With finite force a rover needs several steps to
-reach full speed, and its speed never exceeds the command (the velocity moves along the
-segment towards ``v*``).
+(``dv = F dt / m``, written into the velocity) *before* the physics step, at its first
+physics step: chipmunk integrates positions before velocities, so a force written to
+``Body.force`` would move the body only one physics step later (later physics steps of the
+environment step apply it as a force; :func:`physrover.domain.physics_kernels.control`).
+Applied this way, the integration is semi-implicit Euler and, in the limit of unbounded
+force with one substep, a physical rover follows the idealised trajectory exactly (tested).
+With finite force a rover needs several steps to reach full speed, and its speed never
+exceeds the command (the velocity moves along the segment towards ``v*``).
 
 Contacts are resolved by one compiled pass before every physics step
 (:func:`physrover.domain.physics_kernels.speculative_contacts`), between the rovers of a
@@ -80,7 +89,13 @@ from physrover.config import DomainConfig
 from physrover.domain.dynamics import Dynamics, register_dynamics
 from physrover.domain.kernels import heading_trig
 from physrover.domain.obstacles import box_corners
-from physrover.domain.physics_kernels import separate_teams, setpoints, substep, wrap_angles
+from physrover.domain.physics_kernels import (
+    advance_free,
+    separate_teams,
+    setpoints,
+    substep,
+    wrap_angles,
+)
 
 _ROVER = 0b01
 _WALL = 0b10
@@ -132,7 +147,6 @@ class PhysicsMotion(Dynamics):
     def __init__(self, config: DomainConfig, n_teams: int):
         self.config = config
         self.n_teams, self.n_rovers = n_teams, config.n_rovers
-        n_bodies = n_teams * config.n_rovers
         self.dt = 1.0 / config.physics.substeps
         # Per rover (R,): a heterogeneous team's bodies and limits (a scalar means all).
         p, n = config.physics, config.n_rovers
@@ -146,35 +160,10 @@ class PhysicsMotion(Dynamics):
         max_speed = p.per_rover("max_speed", n)
         self.max_speed = max_speed if np.isfinite(max_speed).any() else None
         self.contact = self.radius[:, None] + self.radius[None, :]  # (R, R) contact distances
-        largest = float(self.radius.max())
 
         self.offsets = self._team_offsets()  # (E, 1, 2) world origin of each team's cell
-        space = pymunk.Space()
-        space.iterations = config.physics.solver_iterations
-        space.collision_slop = 0.01 * float(self.radius.min())
-        # Rebuilt from positions every step: pair order independent of history (see above).
-        space.use_spatial_hash(4.0 * largest, 4 * n_bodies + 1)
-        static = []
-        if config.physics.walls:
-            static += self._walls(space.static_body)
-        static += self._obstacles(space.static_body)
-        # Rovers are shapes only when there is something static to hit: rover-rover
-        # contacts are the compiled pass's alone (see the module docstring).
-        rover_filter = pymunk.ShapeFilter(categories=_ROVER, mask=_WALL)
-        bodies, shapes = [], []
-        origins = self.offsets.reshape(-1, 2).repeat(config.n_rovers, axis=0)
-        for k, origin in enumerate(origins):
-            i = k % n  # the rover's index in its team
-            body = pymunk.Body(float(self.mass[i]), float(self.moment[i]))
-            body.position = tuple(origin)
-            bodies.append(body)
-            if static:
-                shape = pymunk.Circle(body, float(self.radius[i]))
-                shape.filter = rover_filter
-                shape.elasticity = 0.0
-                shape.friction = 0.0
-                shapes.append(shape)
-        space.add(*bodies, *shapes, *static)
+        # Contacts may end a physics step overlapped by this much (Chipmunk's collision slop).
+        self.slop = 0.01 * float(self.radius.min())
         # (E, M, 5) the obstacles' and walls' capsules in the space's frame, for the pass
         capsules = config.scenario.obstacle_capsules()
         if config.physics.walls:
@@ -188,8 +177,45 @@ class PhysicsMotion(Dynamics):
         self.limits = np.stack([self.max_dv, self.max_dw, self.alpha_max, self.mass,
                                 self.moment, self.radius])  # fmt: skip
         self.contact_distances = self.contact if config.physics.collisions else None
+        # pymunk steps the bodies when there is something static to hit (or when asked to);
+        # in open space the compiled step does, on this (E, R, 6) array in the same frame
+        # as the space's (team cells apart), so the two agree to the last bit.
+        self.uses_pymunk = self.capsules is not None or config.physics.integrator == "pymunk"
+        self._free = np.zeros((n_teams, config.n_rovers, 6))  # x, y, angle, vx, vy, w
+        self._scratch = np.zeros((n_teams, config.n_rovers, 6))
+        self.space = self._build_space() if self.uses_pymunk else None
+
+    def _build_space(self) -> pymunk.Space:
+        """The pymunk space of every team's bodies (and shapes when there are walls or
+        obstacles), and the array pymunk.batch writes them from."""
+        config, n = self.config, self.n_rovers
+        space = pymunk.Space()
+        space.iterations = config.physics.solver_iterations
+        space.collision_slop = self.slop
+        # Rebuilt from positions every step: pair order independent of history (see above).
+        space.use_spatial_hash(4.0 * float(self.radius.max()), 4 * self.n_teams * n + 1)
+        static = []
+        if config.physics.walls:
+            static += self._walls(space.static_body)
+        static += self._obstacles(space.static_body)
+        # Rovers are shapes only when there is something static to hit: rover-rover
+        # contacts are the compiled pass's alone (see the module docstring).
+        rover_filter = pymunk.ShapeFilter(categories=_ROVER, mask=_WALL)
+        bodies, shapes = [], []
+        origins = self.offsets.reshape(-1, 2).repeat(n, axis=0)
+        for k, origin in enumerate(origins):
+            i = k % n  # the rover's index in its team
+            body = pymunk.Body(float(self.mass[i]), float(self.moment[i]))
+            body.position = tuple(origin)
+            bodies.append(body)
+            if static:
+                shape = pymunk.Circle(body, float(self.radius[i]))
+                shape.filter = rover_filter
+                shape.elasticity = 0.0
+                shape.friction = 0.0
+                shapes.append(shape)
+        space.add(*bodies, *shapes, *static)
         self._static_shapes = bool(static)
-        self.space = space
         self._buffer = pb.Buffer()
         # Everything written to the space goes through one array, 6 floats per body of the
         # space as pymunk.batch counts them: the rovers, then the space's static body (at
@@ -197,10 +223,11 @@ class PhysicsMotion(Dynamics):
         # ``space.static_body``; set_space_bodies would otherwise read past the array.
         pb.get_space_bodies(space, pb.BodyFields.ANGLE, self._buffer)
         self._written = np.zeros(6 * (len(self._buffer.float_buf()) // 8))
-        if len(self._written) < 6 * n_bodies:
+        if len(self._written) < 6 * self.n_teams * n:
             raise RuntimeError("pymunk.batch does not see every rover body")
         self._set_buffer = pb.Buffer()
         self._set_buffer.set_float_buf(self._written)
+        return space
 
     # -- layout ------------------------------------------------------------------------------
 
@@ -283,7 +310,7 @@ class PhysicsMotion(Dynamics):
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """World positions (E, R, 2), headings (E, R), velocities (E, R, 2), spins (E, R)."""
-        s = self._get(_ALL, 6)
+        s = self._get(_ALL, 6) if self.uses_pymunk else self._free.copy()
         return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5].copy(), s[..., 5]
 
     # -- motion model interface --------------------------------------------------------------
@@ -307,7 +334,13 @@ class PhysicsMotion(Dynamics):
         collisions are on), facing ``headings``; returns the positions used."""
         cfg = self.config
         if cfg.physics.collisions:
-            positions = separate(positions, self.contact, self.space.collision_slop)
+            positions = separate(positions, self.contact, self.slop)
+        start = np.zeros((self.n_teams, self.n_rovers, 6))
+        start[..., :2] = positions + self.offsets
+        start[..., 2] = headings
+        if not self.uses_pymunk:
+            self._free[:] = start
+            return positions
         if self._static_shapes:  # drop every cached contact: park apart, let them expire
             park = np.zeros((self.n_teams, self.n_rovers, 6))
             park[..., 0] = 4.0 * float(self.radius.max()) * np.arange(self.n_rovers)
@@ -315,9 +348,6 @@ class PhysicsMotion(Dynamics):
             self._set(_ALL, park)
             for _ in range(self.space.collision_persistence + 1):
                 self.space.step(1e-6)
-        start = np.zeros((self.n_teams, self.n_rovers, 6))
-        start[..., :2] = positions + self.offsets
-        start[..., 2] = headings
         self._set(_ALL, start)
         return positions
 
@@ -330,12 +360,16 @@ class PhysicsMotion(Dynamics):
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
         setpoints(actions, state.rover_headings, state.cos_h, state.sin_h, self.max_speed,
                   target_v, target_heading)  # fmt: skip
+        if not self.uses_pymunk:
+            s = self._free  # x, y, angle, vx, vy, w
+            advance_free(s, target_v, target_heading, cfg.physics.substeps, dt, self.limits,
+                         self.contact_distances, self.slop, self._scratch)  # fmt: skip
+            return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5]
         out = self._bodies()
         for k in range(cfg.physics.substeps):
             s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
             substep(s, target_v, target_heading, k == 0, dt, self.limits,
-                    self.contact_distances, self.capsules, self.space.collision_slop,
-                    out)  # fmt: skip
+                    self.contact_distances, self.capsules, self.slop, out)  # fmt: skip
             self._set(_MOTION | _FORCES)
             self.space.step(dt)
         s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w

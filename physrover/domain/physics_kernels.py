@@ -3,9 +3,10 @@
 Everything the physical model computes around pymunk, in one call per physics step
 (:func:`substep`): the drive and steering controller (velocity and heading setpoints
 tracked with clipped force and torque) and the contacts between rovers and against the
-static obstacles; and the angle wrapping. pymunk keeps the bodies and integrates them, and
-resolves the rovers' contacts with walls and obstacles; its state moves in and out as one
-(E, R, 6) array per physics step.
+static obstacles; and the angle wrapping. With walls or obstacles pymunk keeps the bodies,
+integrates them and resolves the rovers' contacts with the static shapes, its state moving in
+and out as one (E, R, 6) array per physics step; in open space the same integration runs
+here too (:func:`integrate`, :func:`advance_free`: a whole environment step in one call).
 """
 
 from __future__ import annotations
@@ -244,6 +245,46 @@ def substep(state, target_v, target_heading, first, dt, limits, contact, capsule
     if contact is not None or capsules is not None:
         speculative_contacts(state[..., 0:2], out[..., 0:2], contact, mass, radius, capsules,
                              dt, allowance, CONTACT_SWEEPS)  # fmt: skip
+
+
+@jit
+def integrate(state, out, dt, inv_mass, inv_moment):
+    """Chipmunk's step of free bodies, in place: ``cpSpaceStep`` of a space with nothing to
+    collide, no gravity and no damping, as Chipmunk writes it (``cpBodyUpdatePosition``,
+    then ``cpBodyUpdateVelocity``; term by term, hence the ``+ 0.0`` of the zero bias
+    velocities and gravity), so that it agrees with pymunk to the last bit (tested).
+
+    Args:
+        state: (E, R, 6) x, y, angle, vx, vy, w of the bodies, advanced by ``dt``.
+        out: (E, R, 6) what :func:`substep` wrote: vx, vy, w, fx, fy, torque. Positions
+            move with the written velocities (semi-implicit Euler: p + (v + v_bias) dt),
+            then the velocities take the force's change (v + (g + f / m) dt).
+        dt: the physics step, in environment steps.
+        inv_mass, inv_moment: (R,) ``1 / mass`` and ``1 / moment`` (Chipmunk's m_inv, i_inv).
+    """
+    for e in range(state.shape[0]):
+        for i in range(state.shape[1]):
+            vx, vy, w = out[e, i, 0], out[e, i, 1], out[e, i, 2]
+            state[e, i, 0] = state[e, i, 0] + (vx + 0.0) * dt
+            state[e, i, 1] = state[e, i, 1] + (vy + 0.0) * dt
+            state[e, i, 2] = state[e, i, 2] + (w + 0.0) * dt
+            state[e, i, 3] = vx * 1.0 + (0.0 + out[e, i, 3] * inv_mass[i]) * dt
+            state[e, i, 4] = vy * 1.0 + (0.0 + out[e, i, 4] * inv_mass[i]) * dt
+            state[e, i, 5] = w * 1.0 + out[e, i, 5] * inv_moment[i] * dt
+
+
+@jit
+def advance_free(state, target_v, target_heading, substeps, dt, limits, contact, allowance,
+                 out):  # fmt: skip
+    """One environment step of rovers in open space (no walls or obstacles) in one call:
+    ``substeps`` times :func:`substep` then :func:`integrate`, in place on ``state``
+    (E, R, 6: x, y, angle, vx, vy, w); ``out`` (E, R, 6) is scratch. The other arguments
+    are :func:`substep`'s."""
+    inv_mass, inv_moment = 1.0 / limits[3], 1.0 / limits[4]
+    for k in range(substeps):
+        substep(state, target_v, target_heading, k == 0, dt, limits, contact, None, allowance,
+                out)  # fmt: skip
+        integrate(state, out, dt, inv_mass, inv_moment)
 
 
 @jit
