@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 from collections import defaultdict
 from pathlib import Path
 
@@ -106,12 +107,15 @@ def ablation_table(sweep: Path, last: int) -> None:
 
 
 def _max_critic_at(n_req: int, episodes: int) -> str:
-    """The max critic's mean eval G (fig4-7, 20-generation moving mean, 5 seeds) after the
-    generation at which it had played ``episodes`` training episodes (50 a generation)."""
-    path = OUT / f"fig4-6_curves_nreq{n_req}.csv"
-    if not path.exists():
+    """The max critic's mean eval G after the generation at which it had played
+    ``episodes`` training episodes (50 a generation): fig4-7-long's curves (10 seeds,
+    100-generation moving mean) where they exist, else fig4-7's (5 seeds, 20)."""
+    for name in (f"fig4-6_long_curves_nreq{n_req}.csv", f"fig4-6_curves_nreq{n_req}.csv"):
+        if (OUT / name).exists():
+            break
+    else:
         return "n/a"
-    with open(path, newline="") as f:
+    with open(OUT / name, newline="") as f:
         rows = [r for r in csv.DictReader(f) if r["group"] == "max-critic"]
     generation = episodes // 50
     first = int(rows[0]["generation"]) if rows else 1  # 0 in files written by 0.1.0
@@ -142,12 +146,20 @@ def trainer_label(run: plots.Run) -> str:
     return f"maddpg ({run.fields['maddpg.warmup_actions']} warm-up)"
 
 
-def marl_table(sweeps: list[Path], last: int) -> None:
+def _first_episodes(run: plots.Run, episodes: int) -> plots.Run:
+    """``run`` cut to its rows up to ``episodes`` training episodes."""
+    keep = run.episodes <= episodes
+    return dataclasses.replace(run, eval_G=run.eval_G[keep], generation=run.generation[keep],
+                               episodes=run.episodes[keep])  # fmt: skip
+
+
+def marl_table(sweeps: list[Path], last: int, ccea: list[plots.Run] = ()) -> None:
     """results/marl.{md,csv} and marl_curves_nreq*.png (finished runs of the gradient-based
     sweeps, ``marl``, ``maddpg-check``, ``maddpg-grid``): each method's (:func:`trainer_label`)
     final eval G (mean of the last ``last`` iterations, 95% CI over seeds), the share of
-    seeds that learn, and the max critic after as many training episodes (fig4-7's
-    curves)."""
+    seeds that learn, and the max critic after as many training episodes
+    (:func:`_max_critic_at`). The curves are on training episodes, with the ``ccea`` runs
+    of the same n_req (fig4-7-long's) over the same number of episodes."""
     runs = [r for r in plots.load_runs(find_runs(sweeps)) if len(r.eval_G)]
     runs = [r for r in runs if (r.path / "state.json").exists() and _finished(r.path)]
     cells = defaultdict(lambda: {"final": [], "episodes": []})
@@ -158,6 +170,11 @@ def marl_table(sweeps: list[Path], last: int) -> None:
         cell["episodes"].append(int(run.episodes[-1]))
     for n_req in sorted({n for _, n in cells}):
         subset = [r for r in runs if r.fields["n_req"] == n_req]
+        budget = max(int(r.episodes[-1]) for r in subset)
+        for run in ccea:
+            if run.fields["n_req"] == n_req:
+                subset.append(_first_episodes(run, budget))
+                subset[-1].group = f"{run.fields['method']} (CCEA)"
         table = plots.curve_table(subset, smooth=20)
         plots.plot_curves(table, OUT / f"marl_curves_nreq{n_req}.png",
                           f"15 rovers, 4 POIs, n_req = {n_req}", x="episodes")  # fmt: skip
@@ -381,7 +398,7 @@ def main() -> None:
         ablation_table(root / "ablation", args.last)
     marl_sweeps = [root / n for n in ("marl", "maddpg-check", "maddpg-grid") if (root / n).exists()]
     if marl_sweeps:
-        marl_table(marl_sweeps, args.last)
+        marl_table(marl_sweeps, args.last, finished_runs("fig4-7-long"))
     if not summary_rows:
         if (root / "ablation").exists() or marl_sweeps:
             return
