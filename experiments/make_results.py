@@ -153,30 +153,41 @@ def _first_episodes(run: plots.Run, episodes: int) -> plots.Run:
                                episodes=run.episodes[keep])  # fmt: skip
 
 
+def _budget(run: plots.Run) -> int:
+    """A gradient-based run's budget of training episodes (its config's)."""
+    return int(run.fields[f"{run.fields['method']}.total_episodes"])
+
+
 def marl_table(sweeps: list[Path], last: int, ccea: list[plots.Run] = ()) -> None:
     """results/marl.{md,csv} and marl_curves_nreq*.png (finished runs of the gradient-based
-    sweeps, ``marl``, ``maddpg-check``, ``maddpg-grid``): each method's (:func:`trainer_label`)
-    final eval G (mean of the last ``last`` iterations, 95% CI over seeds), the share of
-    seeds that learn, and the max critic after as many training episodes
-    (:func:`_max_critic_at`). The curves are on training episodes, with the ``ccea`` runs
-    of the same n_req (fig4-7-long's) over the same number of episodes."""
+    sweeps, ``marl``, ``maddpg-check``, ``maddpg-grid``, ``mappo-long``): each method's
+    (:func:`trainer_label`, and its budget unless 25,000 episodes) final eval G (mean of
+    the last ``last`` iterations, 95% CI over seeds), the share of seeds that learn, and
+    the max critic after as many training episodes (:func:`_max_critic_at`). The curves
+    are on training episodes, one figure per n_req and budget (``_250000`` appended for
+    budgets other than 25,000), with the ``ccea`` runs of the same n_req (fig4-7-long's)
+    over the same number of episodes."""
     runs = [r for r in plots.load_runs(find_runs(sweeps)) if len(r.eval_G)]
     runs = [r for r in runs if (r.path / "state.json").exists() and _finished(r.path)]
     cells = defaultdict(lambda: {"final": [], "episodes": []})
     for run in runs:
         run.group = trainer_label(run)
+        if _budget(run) != 25000:  # the 25,000-episode runs are the default; others say so
+            run.group += f", {_budget(run):,} episodes"
         cell = cells[(run.group, run.fields["n_req"])]
         cell["final"].append(float(run.eval_G[-last:].mean()))
         cell["episodes"].append(int(run.episodes[-1]))
-    for n_req in sorted({n for _, n in cells}):
-        subset = [r for r in runs if r.fields["n_req"] == n_req]
-        budget = max(int(r.episodes[-1]) for r in subset)
+    for n_req, budget in sorted({(r.fields["n_req"], _budget(r)) for r in runs}):
+        subset = [r for r in runs if r.fields["n_req"] == n_req and _budget(r) == budget]
+        played = max(int(r.episodes[-1]) for r in subset)
         for run in ccea:
             if run.fields["n_req"] == n_req:
-                subset.append(_first_episodes(run, budget))
+                subset.append(_first_episodes(run, played))
                 subset[-1].group = f"{run.fields['method']} (CCEA)"
-        table = plots.curve_table(subset, smooth=20)
-        plots.plot_curves(table, OUT / f"marl_curves_nreq{n_req}.png",
+        smooth = 20 if budget == 25000 else 100
+        table = plots.curve_table(subset, smooth=smooth)
+        suffix = "" if budget == 25000 else f"_{budget}"
+        plots.plot_curves(table, OUT / f"marl_curves_nreq{n_req}{suffix}.png",
                           f"15 rovers, 4 POIs, n_req = {n_req}", x="episodes")  # fmt: skip
     lines = [
         "| n_req | method | episodes | final G (mean +- 95% CI) | seeds that learn | "
@@ -396,7 +407,8 @@ def main() -> None:
 
     if (root / "ablation").exists():
         ablation_table(root / "ablation", args.last)
-    marl_sweeps = [root / n for n in ("marl", "maddpg-check", "maddpg-grid") if (root / n).exists()]
+    marl_sweeps = [root / n for n in ("marl", "maddpg-check", "maddpg-grid", "mappo-long")
+                   if (root / n).exists()]  # fmt: skip
     if marl_sweeps:
         marl_table(marl_sweeps, args.last, finished_runs("fig4-7-long"))
     if not summary_rows:

@@ -128,7 +128,8 @@ def load_runs(
         rows = read_metrics(path / METRICS)
         eval_g = np.array([r["eval_G"] for r in rows], dtype=float)
         generation = np.array([r["generation"] for r in rows], dtype=np.int64)
-        if rows and "episodes" in rows[0]:
+        if config.trainer is not None or (rows and "episodes" in rows[0]):
+            # A gradient-based run logs its episodes (none yet if it has just started).
             episodes = np.array([r["episodes"] for r in rows], dtype=np.int64)
         else:
             episodes = generation * training_episodes(config)

@@ -318,6 +318,16 @@ def test_an_episodes_column_in_the_metrics_is_used_as_is(tmp_path):
     assert load_runs([run])[0].episodes.tolist() == [32, 64]
 
 
+def test_a_just_started_gradient_based_run_loads_with_no_rows(tmp_path):
+    # A sweep's trainer run that has written no metrics row yet (its header only) loads
+    # as an empty curve; it used to fall through to the CCEA's episodes per generation,
+    # which have no meaning for MADDPG (KeyError: unknown fitness method 'maddpg').
+    config = RunConfig().with_overrides({"method": "maddpg"})
+    prepare_run_dir(tmp_path / "new", config)
+    (run,) = load_runs([tmp_path / "new"])
+    assert run.eval_G.size == 0 and run.episodes.size == 0
+
+
 def test_runs_are_grouped_by_the_fields_of_every_table(tmp_path):
     # Runs that differ in a [physics] field and in the scenario's kind are grouped by them.
     from physrover.config import RunConfig
