@@ -348,3 +348,24 @@ def test_pymunk_steps_the_bodies_whenever_something_static_is_there():
     assert walls.dynamics.uses_pymunk and walls.dynamics.space is not None
     with pytest.raises(ConfigError, match="integrator"):
         DomainConfig(motion="physics", physics=dict(integrator="euler"))
+
+
+@pytest.mark.parametrize("integrator", ["auto", "pymunk"])
+def test_state_and_step_results_are_not_overwritten_by_the_next_step(integrator):
+    # Regression: with pymunk stepping, state()'s spins were a view of pymunk.batch's read
+    # buffer and changed under the caller at the next step.
+    cfg = DomainConfig(n_rovers=3, n_req=1, motion="physics", physics={"integrator": integrator})
+    world = RoverWorld(cfg, 2)
+    world.reset([np.random.default_rng(e) for e in range(2)])
+    world.step(np.tile([1.0, 0.5], (2, 3, 1)))
+    dynamics = world.dynamics
+    before = dynamics.state()
+    kept = [a.copy() for a in before]
+    positions, headings, velocities = dynamics.advance(world.state, np.tile([0.5, -1.0], (2, 3, 1)))
+    returned = [positions.copy(), headings.copy(), velocities.copy()]
+    dynamics.advance(world.state, np.tile([-1.0, 1.0], (2, 3, 1)))
+    for a, b in zip(before, kept, strict=True):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip((positions, headings, velocities), returned, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert np.abs(kept[3]).max() > 0  # the spins being compared are not all zero

@@ -78,8 +78,9 @@ class PhysicsConfig(ConfigBase):
     integrator: str = "auto"
     """Who integrates the bodies: ``"auto"``, the compiled step in open space (no walls or
     obstacles: Chipmunk's semi-implicit Euler step of free bodies, the same arithmetic,
-    bit-identical to pymunk's; tested) and pymunk whenever there is something static to
-    hit; ``"pymunk"``, pymunk always (the reference; about twice as slow in open space)."""
+    bit-identical to pymunk's x86-64 wheels, which use no fused multiply-adds; tested) and
+    pymunk whenever there is something static to hit; ``"pymunk"``, pymunk always (the
+    reference; about twice as slow in open space)."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -161,8 +162,9 @@ class DomainConfig(ConfigBase):
     state after every step, physrover's default), or "before-steps", s_0 .. s_{T-1} (the
     lab's rover-domain code: the state before each step; the final state never counts)."""
     motion: str = "ideal"
-    """Motion model: "ideal" (the paper's kinematics) or "physics" (pymunk bodies, its
-    parameters in [physics]); any registered in :data:`physrover.registry.DYNAMICS`."""
+    """Motion model: "ideal" (the paper's kinematics) or "physics" (rigid bodies with
+    finite force, its parameters in [physics]); any registered in
+    :data:`physrover.registry.DYNAMICS`."""
     physics: Any = None
     """[physics]: a :class:`PhysicsConfig` (used when motion = "physics")."""
     scenario: Any = None

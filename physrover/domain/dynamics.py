@@ -8,8 +8,9 @@ and sines, velocities) and nothing else. Built in:
 - ``ideal`` (:class:`Ideal`, the paper's kinematics, Section 4.1.2): the action (forward,
   left) in the rover's frame is the step's displacement, and the rover turns to face it.
   It is compiled into the world's idealised step kernel (``fused``).
-- ``physics`` (:class:`physrover.domain.physics.PhysicsMotion`): pymunk bodies with mass,
-  finite force and torque and optional collisions, parameters in ``[physics]``.
+- ``physics`` (:class:`physrover.domain.physics.PhysicsMotion`): rigid bodies with mass,
+  finite force and torque and optional collisions (stepped by pymunk, or in open space by
+  the same arithmetic compiled), parameters in ``[physics]``.
 
 A new model is a subclass and one :func:`register_dynamics` call; its name then works as
 ``motion = "NAME"``. Actions reach :meth:`Dynamics.step` checked (no NaN) and clipped to

@@ -13,8 +13,10 @@ rovers or teams. In open space (the default scenario) a pymunk step of bodies th
 nothing to collide with is semi-implicit Euler and nothing else, so the same arithmetic
 runs compiled (:func:`physrover.domain.physics_kernels.integrate`, a whole environment step
 in one call) and gives pymunk's trajectories to the last bit (tested against pymunk, with
-and without rover contacts, for equal and mixed bodies) in half the time: until physrover
-0.4 more than half of the physical step was moving state in and out of pymunk.
+and without rover contacts, for equal and mixed bodies; pymunk's x86-64 wheels use no fused
+multiply-adds, which a build for another CPU might, changing last bits) in half the time:
+until physrover 0.4 more than half of the physical step was moving state in and out of
+pymunk.
 ``integrator = "pymunk"`` steps pymunk in open space too.
 
 Units: lengths in world units, time in environment steps (one step = 1 time unit, split
@@ -136,7 +138,8 @@ def pair_overlaps(positions: np.ndarray, radius: float) -> np.ndarray:
 
 @register_dynamics
 class PhysicsMotion(Dynamics):
-    """Physical motion for E teams of R rovers in one pymunk space; see the module docstring.
+    """Physical motion for E teams of R rovers in one frame (one pymunk space when pymunk
+    steps them); see the module docstring.
 
     Its parameters are the domain's [physics] table (:class:`~physrover.config.PhysicsConfig`).
     """
@@ -311,7 +314,12 @@ class PhysicsMotion(Dynamics):
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """World positions (E, R, 2), headings (E, R), velocities (E, R, 2), spins (E, R)."""
         s = self._get(_ALL, 6) if self.uses_pymunk else self._free.copy()
-        return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5].copy(), s[..., 5]
+        return (
+            s[..., 0:2] - self.offsets,
+            self._wrapped(s[..., 2]),
+            s[..., 3:5].copy(),
+            s[..., 5].copy(),
+        )
 
     # -- motion model interface --------------------------------------------------------------
 
@@ -352,9 +360,9 @@ class PhysicsMotion(Dynamics):
         return positions
 
     def advance(self, state, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Step the space through one environment step from ``state``'s headings (and their
+        """Step the bodies through one environment step from ``state``'s headings (and their
         cosines and sines) under the clipped ``actions`` (E, R, 2); returns the new
-        positions, headings and velocities (world units per step)."""
+        positions, headings and velocities (world units per step), new arrays."""
         cfg, dt = self.config, self.dt
         shape = (self.n_teams, self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
@@ -364,7 +372,7 @@ class PhysicsMotion(Dynamics):
             s = self._free  # x, y, angle, vx, vy, w
             advance_free(s, target_v, target_heading, cfg.physics.substeps, dt, self.limits,
                          self.contact_distances, self.slop, self._scratch)  # fmt: skip
-            return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5]
+            return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5].copy()
         out = self._bodies()
         for k in range(cfg.physics.substeps):
             s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
@@ -373,7 +381,7 @@ class PhysicsMotion(Dynamics):
             self._set(_MOTION | _FORCES)
             self.space.step(dt)
         s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
-        return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5]
+        return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5].copy()
 
     def _wrapped(self, angles: np.ndarray) -> np.ndarray:
         out = np.empty(angles.shape)

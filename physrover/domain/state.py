@@ -5,7 +5,7 @@ arrays natively) instead of a dozen positional arrays. Each group of arrays has 
 
 - the motion model writes the rovers (``rover_positions``, ``rover_headings`` and their
   ``cos_h``, ``sin_h``, ``rover_velocities``): the idealised step kernel, or the physical
-  model from its pymunk bodies;
+  model from its bodies;
 - the scenario writes the POIs (``poi_positions``, ``poi_values``) at reset, and the
   obstacles (``obstacles``) once;
 - scoring (:func:`physrover.domain.kernels.score`, Eqs. 11-13) writes ``poi_counts``,

@@ -22,8 +22,8 @@ and records each rover's trajectory of (observation, action) pairs for the fitne
 With the idealised model and the built-in sensor the whole step (1-3 and the records) is one
 compiled call, :func:`~physrover.domain.kernels.ideal_step` (and a learner's whole episode one
 call, :mod:`physrover.learn.rollout`); otherwise the parts are called
-in turn (the physical model runs pymunk between the clip and the compiled sensing and
-scoring). Plain numpy versions of the same equations live in the tests
+in turn (the physical model steps its bodies, compiled or with pymunk, between the clip and
+the compiled sensing and scoring). Plain numpy versions of the same equations live in the tests
 (``tests/oracles.py``), which compare the two.
 """
 
