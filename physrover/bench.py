@@ -50,7 +50,9 @@ def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> T
         f"motion={config.motion}"
     )
     if config.motion == "physics":
-        name += f" (collisions={config.physics.collisions}, substeps={config.physics.substeps})"
+        stepper = "pymunk" if env.world.dynamics.uses_pymunk else "compiled"
+        name += (f" (collisions={config.physics.collisions}, substeps={config.physics.substeps},"
+                 f" stepped by {stepper})")  # fmt: skip
     return Timing(name, statistics.median(runs), tuple(runs))
 
 
