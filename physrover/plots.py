@@ -110,9 +110,13 @@ def _finish(fig, ax, plt, out: Path) -> None:
 
 def curve_legend(group: str, cols: dict) -> str:
     """A curve's legend entry: ``group (n=runs)``, plus the smoothing when there is some,
-    e.g. ``max-critic (n=1, 20-generation moving mean)``."""
+    e.g. ``max-critic (n=1, 20-generation moving mean)`` (``20-iteration`` for a
+    gradient-based trainer, whose rows are iterations)."""
+    from physrover.registry import TRAINERS
+
     smooth = int(cols.get("smooth", 1))
-    note = f", {smooth}-generation moving mean" if smooth > 1 else ""
+    unit = "iteration" if cols.get("method") in TRAINERS else "generation"
+    note = f", {smooth}-{unit} moving mean" if smooth > 1 else ""
     return f"{group} (n={cols['n']}{note})"
 
 

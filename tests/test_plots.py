@@ -362,3 +362,15 @@ def test_a_trainers_seed_and_bookkeeping_do_not_split_groups():
          "maddpg.warmup_actions": "policy"},
     ]  # fmt: skip
     assert differing_fields(fields) == ["maddpg.warmup_actions"]
+
+
+def test_a_legend_names_its_rows_generations_or_iterations():
+    # A gradient-based trainer's metrics rows are iterations, a CCEA's generations.
+    cols = {"n": 3, "smooth": 20}
+    assert plots.curve_legend("mappo", cols | {"method": "mappo"}) == (
+        "mappo (n=3, 20-iteration moving mean)"
+    )
+    assert plots.curve_legend("max-critic", cols | {"method": "max-critic"}) == (
+        "max-critic (n=3, 20-generation moving mean)"
+    )
+    assert plots.curve_legend("D", {"n": 1, "smooth": 1, "method": "D"}) == "D (n=1)"
