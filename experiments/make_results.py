@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from physrover import plots
+from physrover.evaluate import motion_model
 from physrover.runs import find_runs, read_metrics
 
 OUT = Path("experiments/results")
@@ -47,10 +48,7 @@ def regroup(runs: list[plots.Run], fields: tuple[str, ...]) -> list[plots.Run]:
 
 
 def motion_label(run: plots.Run) -> str:
-    f = run.fields
-    if f["motion"] == "ideal":
-        return "ideal"
-    return "physics+collisions" if f["collisions"] else "physics"
+    return motion_model(run.fields["motion"], run.fields["collisions"])
 
 
 ABLATED = ("method", "critic_lr", "critic_optimizer", "replay_pairs", "critic_hidden")

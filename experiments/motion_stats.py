@@ -1,6 +1,6 @@
 """Why idealised and physical motion score differently: how trained teams move under each.
 
-    python experiments/motion_stats.py RUN_DIR [RUN_DIR ...] [--episodes 200]
+    python experiments/motion_stats.py RUN_DIR [RUN_DIR ...] [--episodes 200] [--name NAME]
 
 Plays each run's champion team on the same fresh episodes (the starts of ``physrover
 evaluate``) under idealised motion and physical motion without and with rover collisions,
@@ -8,8 +8,9 @@ and records per episode: G; each rover's path length (world units, mean over rov
 step of the first capture (NaN if none); the mean number of rovers within d_cap of a POI
 (mean over POIs and steps); the rover pairs in contact per step (centres closer than 1.01
 times their radii summed, physics only), summed over the episode. Writes
-``results/motion_stats.{csv,md}`` (one row per run and motion model: means with 95% CIs) and
-``results/motion_stats.png`` (speed and rovers near POIs over the episode, per model).
+``results/NAME.{csv,md}`` (one row per run and motion model: means with 95% CIs) and
+``results/NAME.png`` (speed and rovers near POIs over the episode, per model); NAME is
+``motion_stats`` unless given.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from physrover.evaluate import MOTION_MODELS, play_champion  # noqa: E402
+from physrover.evaluate import MOTION_MODELS, motion_model, play_champion  # noqa: E402
 from physrover.runs import load_run_config  # noqa: E402
 from physrover.stats import mean_ci  # noqa: E402
 
@@ -59,12 +60,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--episodes", type=int, default=200)
+    parser.add_argument("--name", default="motion_stats", help="the output files' name")
     args = parser.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
     columns = ["G", "path_length", "first_capture_step", "rovers_near_poi", "contacts"]
     rows, profiles = [], {}
     for run in args.runs:
-        trained = load_run_config(run).domain.motion
+        domain = load_run_config(run).domain
+        trained = motion_model(domain.motion, domain.physics.collisions)
         for model, changes in MOTION_MODELS.items():
             _, env = play_champion(run, args.episodes, **changes)
             stats = episode_stats(env.world, env.config)
@@ -77,7 +80,7 @@ def main() -> None:
             row["captured_any"] = f"{np.mean(~np.isnan(stats['first_capture_step'])):.3f}"
             rows.append(row)
             profiles[(run.name, model)] = stats
-    with open(OUT / "motion_stats.csv", "w", newline="") as f:
+    with open(OUT / f"{args.name}.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
@@ -88,7 +91,7 @@ def main() -> None:
         cells = [f"{r[c]} +- {r[c + '_ci95']}" for c in columns]
         lines.append(f"| {r['run']} | {r['trained_under']} | {r['played_under']} | "
                      + " | ".join(cells) + f" | {float(r['captured_any']):.0%} |")  # fmt: skip
-    (OUT / "motion_stats.md").write_text("\n".join(lines) + "\n")
+    (OUT / f"{args.name}.md").write_text("\n".join(lines) + "\n")
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
     for (run, model), stats in profiles.items():
         label = f"{run}: {model}" if len(args.runs) > 1 else model
@@ -100,8 +103,8 @@ def main() -> None:
                 title="rovers near the POIs")  # fmt: skip
     axes[1].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(OUT / "motion_stats.png", dpi=120)
-    print(f"wrote {OUT / 'motion_stats.md'}")
+    fig.savefig(OUT / f"{args.name}.png", dpi=120)
+    print(f"wrote {OUT / args.name}.md")
 
 
 if __name__ == "__main__":

@@ -20,19 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.evaluate import MOTION_MODELS, evaluate_run
+from physrover.evaluate import MOTION_MODELS, evaluate_run, motion_model
 from physrover.runs import find_runs, load_run_config
 from physrover.stats import mean_ci
 
 OUT = Path(__file__).parent / "results"
 MODELS = MOTION_MODELS
-
-
-def trained_under(config) -> str:
-    d = config.domain
-    if d.motion == "ideal":
-        return "ideal"
-    return "physics+collisions" if d.physics.collisions else "physics"
 
 
 def main() -> None:
@@ -50,11 +43,12 @@ def main() -> None:
         metrics = (run / "metrics.csv").read_text().strip().splitlines()
         if len(metrics) - 1 < config.learn.generations:  # unfinished
             continue
+        trained = motion_model(config.domain.motion, config.domain.physics.collisions)
         for model, changes in MODELS.items():
             result = evaluate_run(run, episodes=args.episodes, **changes)
             rows.append({
                 "run": run.name, "method": config.learn.method, "n_req": config.domain.n_req,
-                "seed": config.learn.seed, "trained_under": trained_under(config),
+                "seed": config.learn.seed, "trained_under": trained,
                 "played_under": model, "mean_G": f"{result.mean:.4f}",
             })  # fmt: skip
     if not rows:

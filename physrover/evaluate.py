@@ -35,6 +35,14 @@ MOTION_MODELS = {
 """The domain changes of the three motion models a champion is cross-evaluated under."""
 
 
+def motion_model(motion: str, collisions: bool) -> str:
+    """The name in :data:`MOTION_MODELS` of a domain's ``motion`` and its physics'
+    ``collisions`` (which only matter under physics)."""
+    if motion == "ideal":
+        return "ideal"
+    return "physics+collisions" if collisions else "physics"
+
+
 @dataclass(frozen=True)
 class Evaluation:
     """The champion team of ``run_dir`` after ``generation`` generations, played on

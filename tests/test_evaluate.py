@@ -116,3 +116,11 @@ def test_a_checkpoint_replays_the_runs_own_next_eval_G(tmp_path, motion):
     assert float(np.mean(info["G"])) == logged
     assert 0 < logged < sum(config.domain.poi_values)  # some captures, not every POI always
     assert generator_from_state(eval_states[0]).bit_generator.state == eval_states[0]
+
+
+def test_motion_model_names_each_of_the_three_models():
+    from physrover.evaluate import MOTION_MODELS, motion_model
+
+    for name, changes in MOTION_MODELS.items():
+        assert motion_model(changes["motion"], changes.get("collisions", True)) == name
+    assert motion_model("ideal", False) == "ideal"  # collisions only matter under physics
