@@ -282,8 +282,8 @@ def main() -> None:
         )
         summarise(name, runs, ("method", "n_req"))
 
-    # fig8-9 (400 generations) and fig8-9-long (2000): the same grid.
-    for name, prefix in (("fig8-9", ""), ("fig8-9-long", "long_")):
+    # fig8-9 (400 generations), fig8-9-long (2000) and fig8-9-paper (5000): the same grid.
+    for name, prefix in (("fig8-9", ""), ("fig8-9-long", "long_"), ("fig8-9-paper", "paper_")):
         fig = root / name
         if not fig.exists():
             continue
@@ -425,8 +425,8 @@ def main() -> None:
         for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
             name, body = section.split("\n", 1)
             cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
-    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "physics", "physics-long", "dpp",
-             "ring-random", "stronger-critic", "stronger-critic-ensemble",
+    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "fig8-9-paper", "physics",
+             "physics-long", "dpp", "ring-random", "stronger-critic", "stronger-critic-ensemble",
              "ablation-output-weights"]  # fmt: skip
     rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
     with open(OUT / "runs.csv", "w", newline="") as f:

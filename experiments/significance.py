@@ -33,7 +33,17 @@ COMPARISONS = [
     *[(4, "fig4-7-long", ("mean-critic", n, 15), ("average", n, 15)) for n in (5, 6)],
     (4, "fig4-7-long", ("average", 4, 15), ("max-critic", 4, 15)),
     *[
-        (5, "fig8-9-long", ("max-critic", n, r), ("average", n, r))
+        (5, sweep, (m, n, r), ("average", n, r))
+        for sweep, methods in (
+            ("fig8-9-long", ("max-critic",)),
+            ("fig8-9-paper", ("max-critic", "mean-critic")),
+        )
+        for m in methods
+        for n in (4, 6)
+        for r in (6, 9, 12, 15)
+    ],  # fmt: skip
+    *[
+        (4, "fig8-9-paper", ("max-critic", n, r), ("mean-critic", n, r))
         for n in (4, 6)
         for r in (6, 9, 12, 15)
     ],
@@ -75,12 +85,17 @@ COMPARISONS = [
     # max critic's lead over D survives it
     *[
         (10, "physics-long", (f"{m} ({model})", n, 15), (m, n, 15))
-        for m in ("D", "max-critic")
+        for m in ("D", "mean-critic", "max-critic")
         for model in ("physics", "physics+collisions")
         for n in (3, 4, 5, 6)
     ],  # fmt: skip
     *[
         (11, "physics-long", (f"max-critic ({model})", n, 15), (f"D ({model})", n, 15))
+        for model in ("physics", "physics+collisions")
+        for n in (3, 4, 5, 6)
+    ],  # fmt: skip
+    *[
+        (12, "physics-long", (f"max-critic ({model})", n, 15), (f"mean-critic ({model})", n, 15))
         for model in ("physics", "physics+collisions")
         for n in (3, 4, 5, 6)
     ],  # fmt: skip
@@ -97,6 +112,7 @@ CLAIMS = {
     9: "(ablation) trained hidden-to-output weights vs the paper's fixed ones",
     10: "(issue 14) physical motion, without and with collisions, vs idealised (same seeds)",
     11: "(issue 14) the max critic vs D under physical motion",
+    12: "(issue 14) the max critic vs the mean critic under physical motion",
 }
 
 
