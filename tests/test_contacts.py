@@ -86,12 +86,14 @@ def test_without_collisions_rovers_pass_through_each_other():
     assert (track[-1, :, 0, 0] > track[-1, :, 1, 0]).all()
 
 
+@pytest.mark.parametrize("integrator", ["auto", "compiled"])
 @pytest.mark.parametrize("into", ["box", "wall"])
 @pytest.mark.parametrize("substeps, bound", [(1, 0.25), (4, 0.05)])
-def test_a_column_driven_into_an_obstacle_or_a_wall_stays_apart(into, substeps, bound):
+def test_a_column_driven_into_an_obstacle_or_a_wall_stays_apart(into, substeps, bound, integrator):
     # The static obstacle stops the front rover; the contact pass must stop the nine behind
     # it too, in the same physics step (measured: 5.7% at 1 substep, 0.6% at 4; before the
-    # obstacles joined the rovers' sweeps, 16-45% and 18-41%).
+    # obstacles joined the rovers' sweeps, 16-45% and 18-41%), with Chipmunk's contacts
+    # after it ("auto": pymunk steps the bodies here) or without them ("compiled").
     n = 10
     fields = {"scenario": "explicit", "poi_positions": [[0.0, 2.0]]}
     if into == "box":
@@ -99,8 +101,9 @@ def test_a_column_driven_into_an_obstacle_or_a_wall_stays_apart(into, substeps, 
     else:
         fields.update(walls=True, wall_half_size=8.0)
     cfg = PHYSICS.replace(n_rovers=n, n_req=1, poi_values=(1.0,), steps=30, substeps=substeps,
-                          **fields)  # fmt: skip
+                          integrator=integrator, **fields)  # fmt: skip
     env = RoverVectorEnv(2, config=cfg)
+    assert env.world.dynamics.uses_pymunk == (integrator == "auto")
     start = np.stack([np.linspace(-4.0, 2.0, n), np.linspace(-0.3, 0.3, n)], axis=-1)
     env.reset(seed=0, options={"rover_positions": start, "rover_headings": np.zeros(n)})
     worst = 0.0

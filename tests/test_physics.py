@@ -199,14 +199,15 @@ def test_check_env_and_vector_equivalence_under_physics():
             np.testing.assert_allclose(obs[i], o, rtol=1e-6, atol=1e-9)
 
 
+@pytest.mark.parametrize("integrator", ["auto", "compiled"])
 @pytest.mark.parametrize("collisions", [True, False])
-def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone(collisions):
+def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone(collisions, integrator):
     # Regression: with a static shape in the space, pymunk.batch also reads and writes the
     # static body, which crashed every step with walls (0.1.0) and would move the walls.
     # 12 teams (seeds 0-11): 6 drive straight at full speed with a constant turn, 6 with
     # random commands, so rovers meet the walls at many angles and in crowds.
     env = RoverVectorEnv(12, motion="physics", walls=True, wall_half_size=5.0,
-                         collisions=collisions)  # fmt: skip
+                         collisions=collisions, integrator=integrator)  # fmt: skip
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     for _ in range(50):
@@ -219,7 +220,10 @@ def test_walls_keep_rovers_inside_and_leave_the_rovers_state_alone(collisions):
     # got a step in.
     reach = np.abs(world.position_history).max(axis=(0, 2, 3))  # (E,): each team's farthest
     assert reach.max() < 5.0 and reach[:6].min() > 4.5
-    assert tuple(world.dynamics.space.static_body.position) == (0.0, 0.0)
+    if integrator == "auto":  # pymunk steps the bodies: its static body never moved
+        assert tuple(world.dynamics.space.static_body.position) == (0.0, 0.0)
+    else:  # no pymunk at all
+        assert world.dynamics.space is None
 
 
 @pytest.mark.parametrize("motion", ["ideal", "physics"])
@@ -346,6 +350,9 @@ def test_the_integrate_kernel_is_chipmunks_step_of_a_free_body():
 def test_pymunk_steps_the_bodies_whenever_something_static_is_there():
     walls = RoverWorld(DomainConfig(n_rovers=3, motion="physics", physics={"walls": True}), 2)
     assert walls.dynamics.uses_pymunk and walls.dynamics.space is not None
+    compiled = DomainConfig(n_rovers=3, motion="physics",
+                            physics={"walls": True, "integrator": "compiled"})  # fmt: skip
+    assert not RoverWorld(compiled, 2).dynamics.uses_pymunk
     with pytest.raises(ConfigError, match="integrator"):
         DomainConfig(motion="physics", physics=dict(integrator="euler"))
 

@@ -202,7 +202,8 @@ def test_evaluation_envs_draw_a_fresh_start_per_team_under_generation_redraws():
     )
 
 
-def test_obstacle_contacts_hold_at_every_impact_phase_and_angle():
+@pytest.mark.parametrize("integrator", ["auto", "compiled"])
+def test_obstacle_contacts_hold_at_every_impact_phase_and_angle(integrator):
     # Rovers start 3.0-4.0 from a disc of radius 1 (so the impact falls at different
     # points of the step), aimed at it head-on and off-centre, at full speed.
     starts, headings = [], []
@@ -214,7 +215,8 @@ def test_obstacle_contacts_hold_at_every_impact_phase_and_angle():
     scenario = {"kind": "explicit", "poi_positions": [[0.0, 30.0]],
                 "obstacle_discs": [[0.0, 0.0, 1.0]]}  # fmt: skip
     world = _world(scenario, n_teams=n, n_rovers=1, n_req=1, poi_values=(1.0,), steps=8,
-                   motion="physics")  # fmt: skip
+                   motion="physics", physics={"integrator": integrator})  # fmt: skip
+    assert world.dynamics.uses_pymunk == (integrator == "auto")
     world.reset([np.random.default_rng(e) for e in range(n)],
                 StartOverrides(np.array(starts)[:, None], np.array(headings)[:, None]))  # fmt: skip
     worst = np.inf

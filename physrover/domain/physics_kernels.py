@@ -6,7 +6,7 @@ tracked with clipped force and torque) and the contacts between rovers and again
 static obstacles; and the angle wrapping. With walls or obstacles pymunk keeps the bodies,
 integrates them and resolves the rovers' contacts with the static shapes, its state moving in
 and out as one (E, R, 6) array per physics step; in open space the same integration runs
-here too (:func:`integrate`, :func:`advance_free`: a whole environment step in one call).
+here too (:func:`integrate`, :func:`advance_compiled`: a whole environment step in one call).
 """
 
 from __future__ import annotations
@@ -274,16 +274,16 @@ def integrate(state, out, dt, inv_mass, inv_moment):
 
 
 @jit
-def advance_free(state, target_v, target_heading, substeps, dt, limits, contact, allowance,
-                 out):  # fmt: skip
-    """One environment step of rovers in open space (no walls or obstacles) in one call:
-    ``substeps`` times :func:`substep` then :func:`integrate`, in place on ``state``
-    (E, R, 6: x, y, angle, vx, vy, w); ``out`` (E, R, 6) is scratch. The other arguments
-    are :func:`substep`'s."""
+def advance_compiled(state, target_v, target_heading, substeps, dt, limits, contact, capsules,
+                     allowance, out):  # fmt: skip
+    """One environment step of the rovers in one call, pymunk nowhere: ``substeps`` times
+    :func:`substep` (contacts with the static ``capsules`` too, unless None) then
+    :func:`integrate`, in place on ``state`` (E, R, 6: x, y, angle, vx, vy, w); ``out``
+    (E, R, 6) is scratch. The other arguments are :func:`substep`'s."""
     inv_mass, inv_moment = 1.0 / limits[3], 1.0 / limits[4]
     for k in range(substeps):
-        substep(state, target_v, target_heading, k == 0, dt, limits, contact, None, allowance,
-                out)  # fmt: skip
+        substep(state, target_v, target_heading, k == 0, dt, limits, contact, capsules,
+                allowance, out)  # fmt: skip
         integrate(state, out, dt, inv_mass, inv_moment)
 
 
