@@ -1,4 +1,4 @@
-"""Physical rover motion: pymunk bodies with mass, finite force and torque, optional collisions.
+"""Physical rover motion: rigid bodies with mass, finite force and torque, optional collisions.
 
 Every rover is a rigid disc body (radius ``rover_radius``, mass ``rover_mass``, the moment
 of inertia of a disc); these, ``max_force``, ``max_torque`` and ``max_speed`` may differ
@@ -185,9 +185,10 @@ class PhysicsMotion(Dynamics):
         self.limits = np.stack([self.max_dv, self.max_dw, self.alpha_max, self.mass,
                                 self.moment, self.radius])  # fmt: skip
         self.contact_distances = self.contact if config.physics.collisions else None
-        # pymunk steps the bodies when there is something static to hit (or when asked to);
-        # in open space the compiled step does, on this (E, R, 6) array in the same frame
-        # as the space's (team cells apart), so the two agree to the last bit.
+        # pymunk steps the bodies when there is something static to hit ("auto") or always
+        # ("pymunk"); otherwise the compiled step does, on this (E, R, 6) array in the same
+        # frame as the space's (team cells apart), so in open space the two agree to the
+        # last bit.
         integrator = config.physics.integrator
         self.uses_pymunk = integrator == "pymunk" or (
             integrator == "auto" and self.capsules is not None
