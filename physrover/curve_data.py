@@ -25,10 +25,9 @@ from physrover.config import ConfigError, DomainConfig, LearnConfig
 from physrover.runs import METRICS, load_run_config, read_metrics
 from physrover.stats import mean_ci
 
-NOT_GROUPED = ("seed", "checkpoint_every", "integrator")
+NOT_GROUPED = ("seed", "checkpoint_every")
 """Config fields in which runs of one group may differ: the seed (each run is one sample)
-and bookkeeping that does not change the experiment (checkpoints; the physical model's
-``integrator``, whose choices give the same trajectories). Every other field splits groups,
+and bookkeeping that does not change the experiment. Every other field splits groups,
 ``generations`` included (a 300- and a 2000-generation run are different experiments)."""
 
 

@@ -350,6 +350,22 @@ def test_runs_are_grouped_by_the_fields_of_every_table(tmp_path):
     ]
 
 
+def test_runs_differing_in_the_physical_integrator_are_kept_apart(tmp_path):
+    # "compiled" changes trajectories with walls or obstacles, so the integrator is an
+    # experiment field like any other, not bookkeeping.
+    from physrover.runs import prepare_run_dir
+
+    dirs = []
+    for integrator in ("auto", "compiled"):
+        config = RunConfig().with_overrides({"motion": "physics", "integrator": integrator})
+        prepare_run_dir(tmp_path / integrator, config)
+        dirs.append(tmp_path / integrator)
+    assert [r.group for r in plots.load_runs(dirs)] == [
+        "max-critic integrator=auto",
+        "max-critic integrator=compiled",
+    ]
+
+
 def test_a_trainers_seed_and_bookkeeping_do_not_split_groups():
     from physrover.curve_data import differing_fields
 
