@@ -377,20 +377,20 @@ class PhysicsMotion(Dynamics):
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
         setpoints(actions, state.rover_headings, state.cos_h, state.sin_h, self.max_speed,
                   target_v, target_heading)  # fmt: skip
-        if not self.uses_pymunk:
+        if self.uses_pymunk:
+            out = self._bodies()
+            for k in range(cfg.physics.substeps):
+                s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
+                substep(s, target_v, target_heading, k == 0, dt, self.limits,
+                        self.contact_distances, self.capsules, self.slop, out)  # fmt: skip
+                self._set(_MOTION | _FORCES)
+                self.space.step(dt)
+            s = self._get(_ALL, 6)
+        else:
             s = self._free  # x, y, angle, vx, vy, w
             advance_compiled(s, target_v, target_heading, cfg.physics.substeps, dt,
                              self.limits, self.contact_distances, self.capsules, self.slop,
                              self._scratch)  # fmt: skip
-            return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5].copy()
-        out = self._bodies()
-        for k in range(cfg.physics.substeps):
-            s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
-            substep(s, target_v, target_heading, k == 0, dt, self.limits,
-                    self.contact_distances, self.capsules, self.slop, out)  # fmt: skip
-            self._set(_MOTION | _FORCES)
-            self.space.step(dt)
-        s = self._get(_ALL, 6)  # x, y, angle, vx, vy, w
         return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5].copy()
 
     def _wrapped(self, angles: np.ndarray) -> np.ndarray:
