@@ -182,7 +182,15 @@ def main(argv: Sequence[str] | None = None) -> int:
               "the one implementation (NUMBA_DISABLE_JIT=1 runs them as Python)",
               file=sys.stderr)  # fmt: skip
     try:
-        return args.func(args)
+        code = args.func(args)
+        sys.stdout.flush()  # inside the try: a closed pipe shows here, not at exit
+        return code
+    except BrokenPipeError:
+        # The reader of the output has gone (e.g. `physrover sweep F --dry-run | head`):
+        # stop quietly as Unix tools do, with 128 + SIGPIPE; stdout goes to /dev/null so
+        # Python's final flush does not raise again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except (ConfigError, UsageError, RunError, VideoError) as exc:
         print(f"physrover: error: {exc}", file=sys.stderr)
         return 2

@@ -4,6 +4,8 @@ import argparse
 import io
 import os
 import stat
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -212,3 +214,20 @@ def test_demo_prints_a_table_of_both_models():
     lines = table.splitlines()
     assert lines[0].split()[:5] == ["episode", "G", "ideal", "G", "physics"]
     assert lines[1].split() == ["1", "7", "9"] and lines[2].split() == ["2", "6", "9"]
+
+
+def test_output_into_a_closed_pipe_ends_quietly(tmp_path):
+    """`physrover ... | head`: the reader has gone before the output is written; the command
+    exits with 141 (128 + SIGPIPE) and no traceback, instead of a BrokenPipeError."""
+    read, write = os.pipe()
+    os.close(read)  # every write into the pipe now fails with EPIPE
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", "import sys; from physrover.cli import main; "
+             "sys.exit(main(['methods']))"],
+            stdout=write, stderr=subprocess.PIPE, text=True, timeout=120,
+        )  # fmt: skip
+    finally:
+        os.close(write)
+    assert done.returncode == 141, done.stderr
+    assert "Traceback" not in done.stderr and "BrokenPipe" not in done.stderr
