@@ -131,6 +131,22 @@ def _finished(run_dir: Path) -> bool:
     return run_status(spec) == "done"
 
 
+def _twins(physical: list[plots.Run], *sources: list[plots.Run]) -> list[plots.Run]:
+    """The idealised twins of ``physical`` runs (the same method and seed): per method, the
+    runs of the first of ``sources`` that has that method."""
+    seeds = {r.fields["seed"] for r in physical}
+    twins = []
+    for method in sorted({r.fields["method"] for r in physical}):
+        for source in sources:
+            found = [
+                r for r in source if r.fields["method"] == method and r.fields["seed"] in seeds
+            ]
+            if found:
+                twins += found
+                break
+    return twins
+
+
 def trainer_label(run: plots.Run) -> str:
     """A gradient-based run's row: its method and, for MADDPG, its warm-up; a MADDPG run
     whose config predates the pre-tanh penalty and gradient clipping (physrover 0.1: no
@@ -353,14 +369,13 @@ def main() -> None:
         )
 
     # Issue 14: idealised vs physical motion at 5000 generations. The idealised twins (same
-    # method, n_req and seed) are fig4-7-long's runs; they are listed again under this
-    # sweep's name (motion "ideal") so its table compares the three models on equal seeds.
+    # method, n_req and seed) of a method are physics-long-ideal's runs where it has them
+    # (the same commit and machine as the physical runs), else fig4-7-long's; they are
+    # listed again under this sweep's name (motion "ideal") so its table compares the three
+    # models on equal seeds.
     physical = finished_runs("physics-long")
     if physical:
-        seeds = {r.fields["seed"] for r in physical}
-        methods = {r.fields["method"] for r in physical}
-        twins = [r for r in finished_runs("fig4-7-long")
-                 if r.fields["method"] in methods and r.fields["seed"] in seeds]  # fmt: skip
+        twins = _twins(physical, finished_runs("physics-long-ideal"), finished_runs("fig4-7-long"))
         runs = physical + twins
         for run in runs:
             run.group = f"{run.fields['method']} {motion_label(run)}"
