@@ -138,7 +138,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("sweep", help="run a grid of training runs (process pool or Ray)")
     p.add_argument("sweep_file", help="sweep TOML ([sweep], [base.*], [grid])")
-    p.add_argument("--seeds", type=int, help="seeds per cell (default: the file's)")
+    p.add_argument("--seeds", metavar="N|A:B",
+                   help="seeds per cell, N (seeds 0..N-1) or A:B (seeds A..B-1, a chunk of "
+                        "the sweep); default: the file's")  # fmt: skip
     p.add_argument("--workers", type=int, help="parallel runs (default: CPU count)")
     p.add_argument("--ray", metavar="ADDRESS", help="run on Ray ('local' starts one here)")
     p.add_argument("--root", default="runs/sweeps", help="where sweeps go (default runs/sweeps)")
@@ -159,7 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "sweeps", nargs="*", help="paper: sweep files (default: the paper's long sweeps)"
     )
-    p.add_argument("--seeds", type=int, help="paper: seeds per cell (default: the file's)")
+    p.add_argument(
+        "--seeds", metavar="N|A:B", help="paper: seeds per cell, N or A:B (default: the file's)"
+    )
     p.add_argument("--workers", type=int, default=2, help="paper: parallel runs (default 2)")
     p.add_argument("--methods", help="comma-separated methods for 'train' (default: all)")
     _add_motion_args(p, "the config's")

@@ -169,7 +169,7 @@ def _bench_paper(args: argparse.Namespace, bench) -> int:
     grand = 0.0
     for path in files:
         sweep = Sweep.load(path)
-        specs = sweep.runs("runs/sweeps", seeds=args.seeds)
+        specs = sweep.runs("runs/sweeps", seeds=_seeds(args.seeds))
         estimates = bench.estimate_sweep(specs, timer=lambda c: bench.time_step(c, args.repeats))
         wall = bench.sweep_wall_time(estimates, args.workers)
         grand += wall
@@ -276,11 +276,18 @@ def _episode_table(scores: list[float], poi_values) -> str:
     return "\n".join(lines)
 
 
+def _seeds(text: str | None) -> int | range | None:
+    """``--seeds`` of sweep and bench paper (:func:`physrover.sweep.parse_seeds`)."""
+    from physrover.sweep import parse_seeds
+
+    return None if text is None else parse_seeds(text)
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     from physrover.sweep import Sweep, run_sweep
 
     sweep = Sweep.load(args.sweep_file)
-    specs = sweep.runs(args.root, seeds=args.seeds, drop_state=args.drop_state)
+    specs = sweep.runs(args.root, seeds=_seeds(args.seeds), drop_state=args.drop_state)
     if args.dry_run:
         for spec in specs:
             print(spec.out)

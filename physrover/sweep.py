@@ -4,7 +4,7 @@ A sweep file (TOML) names a base config and a grid::
 
     [sweep]
     name = "fig4-7"          # runs go under ROOT/name/ (ROOT: --root, default runs/sweeps)
-    seeds = 5                # seeds 0 .. seeds-1 for every cell (--seeds overrides)
+    seeds = 5                # seeds 0 .. seeds-1 for every cell (--seeds N or A:B overrides)
 
     [base.domain]            # the base RunConfig, as in a run's config.toml
     n_rovers = 15
@@ -25,6 +25,10 @@ Every cell x seed is one ``train`` run in its own directory, named by its grid v
 seed. Re-running a sweep skips finished runs and resumes interrupted ones from their
 checkpoints; a crashed run is reported with its error and does not stop the others. Each
 worker runs one training at a time with torch/BLAS pinned to one thread.
+
+``--seeds A:B`` runs seeds A .. B-1 only: a sweep too long for one machine's lifetime can be
+run in chunks of seeds (e.g. ``--seeds 0:5`` then ``--seeds 5:10``), each run's name and
+results being those it has in the whole sweep.
 """
 
 from __future__ import annotations
@@ -97,21 +101,39 @@ class Sweep:
         return cls(name, base, grid, seeds, variants)
 
     def runs(
-        self, root: str | Path, seeds: int | None = None, drop_state: bool = False
+        self, root: str | Path, seeds: int | range | None = None, drop_state: bool = False
     ) -> list[RunSpec]:
         """Every cell x seed, with its resolved config; invalid cells are config errors.
+        ``seeds``: how many (seeds 0 .. seeds-1) or which (a range); default the file's.
         ``drop_state``: each run deletes its state.npz when it finishes."""
         fields = list(self.grid)
         specs = []
         cells = itertools.product(itertools.product(*(self.grid[f] for f in fields)), self.variants)
+        chosen = seeds if isinstance(seeds, range) else range(seeds or self.seeds)
         for values, variant in cells:
-            for seed in range(seeds or self.seeds):
+            for seed in chosen:
                 overrides = {**dict(zip(fields, values, strict=True)), **variant, "seed": seed}
                 config = self.base.with_overrides(overrides)
                 name = "_".join(f"{f}={_slug(v)}" for f, v in overrides.items())
                 out = str(Path(root) / self.name / name)
                 specs.append(RunSpec(name, config.to_toml(), out, drop_state))
         return specs
+
+
+def parse_seeds(text: str) -> int | range:
+    """``--seeds``: ``N`` (seeds 0 .. N-1) or ``A:B`` (seeds A .. B-1), N >= 1, 0 <= A < B."""
+    try:
+        if ":" in text:
+            first, stop = (int(part) for part in text.split(":"))
+            if 0 <= first < stop:
+                return range(first, stop)
+        elif int(text) >= 1:
+            return int(text)
+    except ValueError:
+        pass
+    raise ConfigError(
+        "seeds", f"must be N >= 1 (seeds 0..N-1) or A:B with 0 <= A < B, got {text!r}"
+    )
 
 
 def _slug(value: Any) -> str:

@@ -6,6 +6,7 @@ import os
 import stat
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -94,6 +95,18 @@ def test_config_errors_name_the_file_and_line(tmp_path, capsys):
     sweep.write_text("[sweep]\nname = 'x'\n[grid]\nnreq = [1, 2]\n")
     assert main(["sweep", str(sweep), "--dry-run"]) == 2
     assert str(sweep) in capsys.readouterr().err
+
+
+def test_sweep_runs_a_chunk_of_seeds(tmp_path, capsys):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text("[sweep]\nname = 'x'\nseeds = 10\n[grid]\nn_req = [1, 2]\n")
+    assert main(["sweep", str(sweep), "--dry-run", "--root", str(tmp_path), "--seeds", "8:10"]) == 0
+    listed = capsys.readouterr().out.split()
+    assert [Path(p).name for p in listed] == [
+        "n_req=1_seed=8", "n_req=1_seed=9", "n_req=2_seed=8", "n_req=2_seed=9"
+    ]  # fmt: skip
+    assert main(["sweep", str(sweep), "--dry-run", "--seeds", "10:8"]) == 2
+    assert "seeds: must be" in capsys.readouterr().err
 
 
 def test_generation_numbers_agree_across_files(tmp_path):

@@ -8,7 +8,7 @@ from conftest import comparable_rows
 
 from physrover.config import ConfigError
 from physrover.runs import read_metrics, train
-from physrover.sweep import Sweep, run_status, run_sweep
+from physrover.sweep import Sweep, parse_seeds, run_status, run_sweep
 
 SWEEP = """
 [sweep]
@@ -52,6 +52,23 @@ def test_grid_expands_to_cells_times_seeds(tmp_path):
         "method=D_seed=0", "method=D_seed=1", "method=max-critic_seed=0", "method=max-critic_seed=1"
     ]  # fmt: skip
     assert len(_sweep(tmp_path).runs(tmp_path, seeds=3)) == 6
+
+
+def test_chunks_of_seeds_are_the_whole_sweeps_runs(tmp_path):
+    """--seeds 0:2 then 2:5 gives the runs of --seeds 5, names, configs and directories."""
+    sweep = _sweep(tmp_path)
+    whole = sweep.runs(tmp_path, seeds=5)
+    chunks = sweep.runs(tmp_path, seeds=range(0, 2)) + sweep.runs(tmp_path, seeds=range(2, 5))
+    key = lambda spec: spec.name  # noqa: E731
+    assert sorted(chunks, key=key) == sorted(whole, key=key)
+    later = sweep.runs(tmp_path, seeds=parse_seeds("3:5"))
+    assert sorted(s.name for s in later) == [
+        "method=D_seed=3", "method=D_seed=4", "method=max-critic_seed=3", "method=max-critic_seed=4"
+    ]  # fmt: skip
+    assert parse_seeds("4") == 4 and parse_seeds("2:3") == range(2, 3)
+    for bad in ("0", "-1", "3:3", "5:2", "-1:2", "a", "1:2:3", ""):
+        with pytest.raises(ConfigError, match="seeds: must be"):
+            parse_seeds(bad)
 
 
 def test_bad_sweep_files(tmp_path):
