@@ -7,7 +7,10 @@ Writes under experiments/results/: learning-curve PNGs with their CSVs (mean eva
 row per run: its config cell, seed, final score, wall time) and cells.md (the table of
 final mean G +- 95% CI per cell that RESULTS.md quotes). Sweeps missing under ``--root``
 keep their rows of runs.csv and their sections of cells.md, so sweeps can be re-made one
-at a time. "Final score" of a run is its mean
+at a time. A final-score sweep (the fig8-9 family) found only in part, e.g. the chunk of seeds
+this machine ran (``physrover sweep FILE --seeds 5:10``), keeps the rows of its finished runs
+that are not on disk, and its figure and table pool them with the runs found: the committed
+runs.csv is what carries a sweep across machines. "Final score" of a run is its mean
 eval G over its last ``--last`` generations; the CI is over seeds (Student t).
 """
 
@@ -22,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from physrover import plots
+from physrover.curve_data import Table, scores_table
 from physrover.evaluate import motion_model
 from physrover.runs import find_runs, read_metrics
 
@@ -131,6 +135,39 @@ def _finished(run_dir: Path) -> bool:
     return run_status(spec) == "done"
 
 
+def _column(row: dict, field: str):
+    """A runs.csv value as the config field's type (ints for n_req, n_rovers, seed)."""
+    value = row[field]
+    return int(value) if field in ("n_req", "n_rovers", "seed") else value
+
+
+def _kept_finals(rows: list[dict], sweep: str, found: list[plots.Run]) -> list[dict]:
+    """The rows of runs.csv of ``sweep``'s finished runs that are not among the ``found``
+    run directories (a run is finished when it has the most generations of any run of the
+    sweep, found or kept)."""
+    names = {run.path.name for run in found}
+    mine = [row for row in rows if row["sweep"] == sweep and row["run"] not in names]
+    full = max([len(run.eval_G) for run in found] + [int(row["generations"]) for row in mine])
+    return [row for row in mine if int(row["generations"]) == full]
+
+
+def _final_scores(runs: list[plots.Run], rows: list[dict], x: str, last: int) -> Table:
+    """:func:`plots.final_table` of ``runs`` (grouped by their ``group``, the method in the
+    fig8-9 sweeps) with the final scores of the kept runs.csv ``rows`` pooled in, by method;
+    a group's G max is the largest of its runs found, or of all runs found."""
+    if not rows:
+        return plots.final_table(runs, x, last=last)
+    scores: dict[str, dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for run in runs:
+        scores[run.group][run.fields[x]].append(float(run.eval_G[-last:].mean()))
+    for row in rows:
+        scores[row["method"]][_column(row, x)].append(float(row["final_G"]))
+    g_max = max(run.g_max for run in runs)
+    shared = {group: (max([r.g_max for r in runs if r.group == group], default=g_max), group)
+              for group in scores}  # fmt: skip
+    return scores_table(x, scores, shared)
+
+
 def _twins(physical: list[plots.Run], *sources: list[plots.Run]) -> list[plots.Run]:
     """The idealised twins of ``physical`` runs (the same method and seed): per method, the
     runs of the first of ``sources`` that has that method."""
@@ -233,14 +270,24 @@ def main() -> None:
     args = parser.parse_args()
     root = Path(args.root)
     OUT.mkdir(parents=True, exist_ok=True)
+    previous_rows = []
+    if (OUT / "runs.csv").exists():
+        with open(OUT / "runs.csv", newline="") as f:
+            previous_rows = list(csv.DictReader(f))
     summary_rows = []
     cell_sections: dict[str, list[str]] = {}  # sweep -> its lines of cells.md
 
     def summarise(name: str, runs: list[plots.Run], cell_fields: tuple[str, ...], key=None,
-                  variant_fields: tuple[str, ...] = ()):  # fmt: skip
+                  variant_fields: tuple[str, ...] = (), kept: list[dict] = ()):  # fmt: skip
         """Rows of runs.csv and a table of cells.md; the ``variant`` column names the
-        ``variant_fields`` a sweep varies beyond the method."""
+        ``variant_fields`` a sweep varies beyond the method. ``kept``: rows of runs.csv of
+        runs not on disk, pooled into the cells (``cell_fields`` must be columns) and
+        written again."""
         cells = defaultdict(list)
+        first = len(summary_rows)
+        for row in kept:
+            cells[tuple(_column(row, f) for f in cell_fields)].append(float(row["final_G"]))
+            summary_rows.append(row)
         for run in runs:
             rows = read_metrics(run.path / "metrics.csv")
             final = float(run.eval_G[-args.last :].mean())
@@ -263,6 +310,8 @@ def main() -> None:
                     "wall_seconds": round(rows[-1]["wall_seconds"], 1),
                 }
             )
+        if kept:  # kept and found runs in the order of a sweep found whole (find_runs')
+            summary_rows[first:] = sorted(summary_rows[first:], key=lambda row: row["run"])
         cell_lines = cell_sections.setdefault(name, [])
         cell_lines.append(f"\n### {name}\n")
         header = " | ".join(cell_fields)
@@ -305,15 +354,19 @@ def main() -> None:
             continue
         runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]  # started
         gens = max(len(r.eval_G) for r in runs)
+        kept = _kept_finals(previous_rows, name, runs)
+        gens = max([gens, *(int(row["generations"]) for row in kept)])
+        regroup(runs, ())
         for n_req in sorted({r.fields["n_req"] for r in runs}):
-            subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
+            subset = [r for r in runs if r.fields["n_req"] == n_req]
+            rows = [row for row in kept if int(row["n_req"]) == n_req]
             plots.plot_final(
-                plots.final_table(subset, "n_rovers", last=args.last),
+                _final_scores(subset, rows, "n_rovers", args.last),
                 OUT / f"fig8-9_{prefix}final_vs_rovers_nreq{n_req}.png",
                 "n_rovers",
                 f"4 POIs, n_req = {n_req}, {gens} generations: final score (last {args.last})",
             )
-        summarise(name, runs, ("method", "n_req", "n_rovers"))
+        summarise(name, runs, ("method", "n_req", "n_rovers"), kept=kept)
 
     fig = root / "physics"
     if fig.exists():

@@ -257,19 +257,35 @@ def final_table(runs: list[Run], x: str, last: int = 1) -> Table:
             cells[run.group][run.fields[x]].append(run)
         else:
             table.messages.append(f"{run.path}: no generations yet, left out")
-    for group in sorted(cells, key=_natural):
+    scores: dict[str, dict[float, list[float]]] = {}
+    shared = {}
+    for group in cells:
         by_x = cells[group]
-        xs = sorted(by_x)
-        stats = []
-        for v in xs:
+        for v in sorted(by_x):
             lengths = sorted(len(run.eval_G) for run in by_x[v])
             if lengths[0] != lengths[-1]:
                 table.messages.append(
                     f"{group}, {x}={format_value(v)}: {len(lengths)} runs of {lengths[0]} to "
                     f"{lengths[-1]} generations, each scored on its own last {last}"
                 )
-            stats.append(mean_ci(np.array([run.eval_G[-last:].mean() for run in by_x[v]])))
-        g_max, method = _shared([run for v in xs for run in by_x[v]])
+        scores[group] = {v: [float(run.eval_G[-last:].mean()) for run in by_x[v]] for v in by_x}
+        shared[group] = _shared([run for v in by_x for run in by_x[v]])
+    scored = scores_table(x, scores, shared)
+    scored.messages[:0] = table.messages
+    return scored
+
+
+def scores_table(
+    x: str, scores: dict[str, dict[float, list[float]]], shared: dict[str, tuple]
+) -> Table:
+    """The table of :func:`final_table` from final scores already computed: ``scores``
+    {group: {value of ``x``: [a final score per run]}}, ``shared`` {group: (G max, method
+    or None)}. Also what draws a final-score figure from rows of a results CSV."""
+    table = Table(x)
+    for group in sorted(scores, key=_natural):
+        xs = sorted(scores[group])
+        stats = [mean_ci(np.array(scores[group][v], dtype=float)) for v in xs]
+        g_max, method = shared[group]
         table[group] = {
             "x": np.array(xs, dtype=float),
             "mean": np.array([s[0] for s in stats]),

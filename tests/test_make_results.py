@@ -1,0 +1,129 @@
+"""experiments/make_results.py carries a final-score sweep across machines: a sweep run in
+chunks of seeds on machines that do not keep each other's run directories gives the same
+runs.csv rows, cells.md table and figure numbers as the whole sweep found on one disk."""
+
+import csv
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+from physrover.config import RunConfig
+from physrover.sweep import Sweep
+
+ROOT = Path(__file__).parents[1]
+
+SWEEP = """
+[sweep]
+name = "fig8-9-paper"
+seeds = 4
+[base.domain]
+n_req = 1
+[base.learn]
+generations = 4
+[grid]
+method = ["D", "max-critic"]
+n_rovers = [3, 4]
+"""
+
+
+@pytest.fixture
+def make_results(monkeypatch):
+    spec = importlib.util.spec_from_file_location(
+        "make_results", ROOT / "experiments" / "make_results.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+
+    def run(root: Path, out: Path) -> None:
+        monkeypatch.setattr(module, "OUT", out)
+        monkeypatch.setattr(sys, "argv", ["make_results.py", "--root", str(root), "--last", "2"])
+        module.main()
+
+    return run
+
+
+def _final(spec) -> float:
+    """A made-up final score of a run, different for every run: seed + n_rovers / 10 (+ 5
+    for the max critic)."""
+    config = RunConfig.from_toml(spec.config_toml)
+    bonus = 5.0 * (config.learn.method == "max-critic")
+    return config.learn.seed + config.domain.n_rovers / 10 + bonus
+
+
+def _fake_runs(sweep: Sweep, root: Path, seeds) -> None:
+    """Run directories of the sweep's runs of ``seeds`` as training writes them (config and
+    metrics; the last two generations' eval G average to :func:`_final`)."""
+    for spec in sweep.runs(root, seeds=seeds):
+        out = Path(spec.out)
+        out.mkdir(parents=True)
+        (out / "config.toml").write_text(spec.config_toml)
+        final = _final(spec)
+        with open(out / "metrics.csv", "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(["generation", "eval_G", "train_G_mean", "fitness_mean",
+                             "critic_loss", "wall_seconds"])  # fmt: skip
+            for g, value in enumerate([0.0, 0.0, final - 0.5, final + 0.5], start=1):
+                writer.writerow([g, value, 0.0, 0.0, "nan", 1.0])
+
+
+def _outputs(out: Path) -> tuple:
+    rows = [r for r in csv.DictReader(open(out / "runs.csv")) if r["sweep"] == "fig8-9-paper"]
+    figure = (out / "fig8-9_paper_final_vs_rovers_nreq1.csv").read_text()
+    return rows, (out / "cells.md").read_text(), figure
+
+
+def _numbers(figure_csv: str) -> list[float]:
+    return [float(v) for line in figure_csv.splitlines()[1:] for v in line.split(",")[1:]]
+
+
+def test_chunks_of_seeds_on_fresh_machines_equal_the_whole_sweep(tmp_path, make_results):
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP)
+    sweep = Sweep.load(path)
+    whole, first, second = (tmp_path / name for name in ("whole", "first", "second"))
+    _fake_runs(sweep, whole / "root", None)
+    make_results(whole / "root", whole / "results")
+    _fake_runs(sweep, first / "root", range(0, 2))  # the first machine: seeds 0-1
+    make_results(first / "root", first / "results")
+    (second / "results").mkdir(parents=True)  # the second: seeds 2-3 and the committed files
+    for name in ("runs.csv", "cells.md"):
+        (second / "results" / name).write_text((first / "results" / name).read_text())
+    _fake_runs(sweep, second / "root", range(2, 4))
+    make_results(second / "root", second / "results")
+    rows, cells, figure = _outputs(whole / "results")
+    pooled = _outputs(second / "results")
+    assert pooled[:2] == (rows, cells)
+    # runs.csv keeps final scores to 4 decimals: the pooled figure's numbers agree to that
+    assert _numbers(pooled[2]) == pytest.approx(_numbers(figure), abs=1e-4)
+    assert len(rows) == 16
+    # max-critic at 4 rovers: seeds 0-3 score 5.4, 6.4, 7.4, 8.4: mean 6.9 over n = 4
+    cell = {(r["group"], float(r["n_rovers"])): r for r in csv.DictReader(figure.splitlines())}
+    assert len(cell) == 4 and {int(r["n"]) for r in cell.values()} == {4}
+    assert float(cell["max-critic", 4.0]["mean"]) == pytest.approx(6.9)
+    assert float(cell["D", 3.0]["mean"]) == pytest.approx(1.8)
+    assert "| max-critic | 1 | 4 | 6.90 +- " in cells
+    # the first machine alone: two seeds a cell
+    assert "| max-critic | 1 | 4 | 5.90 +- " in _outputs(first / "results")[1]
+
+
+def test_unfinished_kept_rows_are_dropped(tmp_path, make_results):
+    """A row of a run that was still going when its machine's results were made is not a
+    final score: only rows with the sweep's full length are kept."""
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP)
+    sweep = Sweep.load(path)
+    first, second = tmp_path / "first", tmp_path / "second"
+    _fake_runs(sweep, first / "root", range(0, 1))
+    cut = first / "root" / "fig8-9-paper" / "method=D_n_rovers=3_seed=0" / "metrics.csv"
+    cut.write_text("".join(cut.read_text().splitlines(keepends=True)[:3]))  # 2 generations
+    make_results(first / "root", first / "results")
+    (second / "results").mkdir(parents=True)
+    for name in ("runs.csv", "cells.md"):
+        (second / "results" / name).write_text((first / "results" / name).read_text())
+    _fake_runs(sweep, second / "root", range(1, 2))
+    make_results(second / "root", second / "results")
+    runs = {row["run"] for row in _outputs(second / "results")[0]}
+    assert "method=D_n_rovers=3_seed=0" not in runs
+    assert "method=max-critic_n_rovers=3_seed=0" in runs and len(runs) == 7
