@@ -352,7 +352,10 @@ def main() -> None:
         fig = root / name
         if not fig.exists():
             continue
-        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]  # started
+        # finished runs only: their rows are final scores that later machines keep
+        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G) and _finished(r.path)]
+        if not runs:
+            continue
         gens = max(len(r.eval_G) for r in runs)
         kept = _kept_finals(previous_rows, name, runs)
         gens = max([gens, *(int(row["generations"]) for row in kept)])

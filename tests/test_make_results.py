@@ -66,6 +66,7 @@ def _fake_runs(sweep: Sweep, root: Path, seeds) -> None:
                              "critic_loss", "wall_seconds"])  # fmt: skip
             for g, value in enumerate([0.0, 0.0, final - 0.5, final + 0.5], start=1):
                 writer.writerow([g, value, 0.0, 0.0, "nan", 1.0])
+        (out / "state.json").write_text('{"generation": 4}')  # finished
 
 
 def _outputs(out: Path) -> tuple:
@@ -90,7 +91,9 @@ def test_chunks_of_seeds_on_fresh_machines_equal_the_whole_sweep(tmp_path, make_
     (second / "results").mkdir(parents=True)  # the second: seeds 2-3 and the committed files
     for name in ("runs.csv", "cells.md"):
         (second / "results" / name).write_text((first / "results" / name).read_text())
-    _fake_runs(sweep, second / "root", range(2, 4))
+    _fake_runs(sweep, second / "root", range(2, 5))
+    for going in (second / "root" / "fig8-9-paper").glob("*_seed=4"):  # still running
+        (going / "state.json").write_text('{"generation": 2}')  # left out
     make_results(second / "root", second / "results")
     rows, cells, figure = _outputs(whole / "results")
     pooled = _outputs(second / "results")
@@ -110,7 +113,8 @@ def test_chunks_of_seeds_on_fresh_machines_equal_the_whole_sweep(tmp_path, make_
 
 def test_unfinished_kept_rows_are_dropped(tmp_path, make_results):
     """A row of a run that was still going when its machine's results were made is not a
-    final score: only rows with the sweep's full length are kept."""
+    final score: only rows with the sweep's full length are kept (rows written before
+    make_results left unfinished runs out)."""
     path = tmp_path / "sweep.toml"
     path.write_text(SWEEP)
     sweep = Sweep.load(path)
