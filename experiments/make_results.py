@@ -7,11 +7,14 @@ Writes under experiments/results/: learning-curve PNGs with their CSVs (mean eva
 row per run: its config cell, seed, final score, wall time) and cells.md (the table of
 final mean G +- 95% CI per cell that RESULTS.md quotes). Sweeps missing under ``--root``
 keep their rows of runs.csv and their sections of cells.md, so sweeps can be re-made one
-at a time. A final-score sweep (the fig8-9 family) found only in part, e.g. the chunk of seeds
-this machine ran (``physrover sweep FILE --seeds 5:10``), keeps the rows of its finished runs
-that are not on disk, and its figure and table pool them with the runs found: the committed
-runs.csv is what carries a sweep across machines. "Final score" of a run is its mean
-eval G over its last ``--last`` generations; the CI is over seeds (Student t).
+at a time. ``fig8-9-paper`` (:data:`POOLED`), a final-score sweep run in chunks of seeds
+(``physrover sweep FILE --seeds 0:2``, ``2:4``, ...) on machines that do not keep each other's
+run directories, keeps the rows of its finished runs that are not among the finished runs
+on disk, and its figures and table pool them with the runs found: the committed runs.csv
+is what carries it across machines (with ``--last`` 50, the rows' own). Any other sweep
+found on disk is made from what is there alone: chunking it would drop the other chunks.
+"Final score" of a run is its mean eval G over its last ``--last`` generations; the CI is
+over seeds (Student t).
 """
 
 from __future__ import annotations
@@ -141,20 +144,28 @@ def _column(row: dict, field: str):
     return int(value) if field in ("n_req", "n_rovers", "seed") else value
 
 
+POOLED = ("fig8-9-paper",)
+"""Final-score sweeps whose committed runs.csv rows are pooled with the runs found (module
+docstring): the ones run in chunks of seeds across machines."""
+POOLED_LAST = 50
+"""The ``--last`` of the committed rows' final scores; another ``--last`` pools nothing."""
+
+
 def _kept_finals(rows: list[dict], sweep: str, found: list[plots.Run]) -> list[dict]:
     """The rows of runs.csv of ``sweep``'s finished runs that are not among the ``found``
-    run directories (a run is finished when it has the most generations of any run of the
-    sweep, found or kept)."""
+    finished run directories, one per run (a row's run is finished when it has the most
+    generations of any run of the sweep, found or kept)."""
     names = {run.path.name for run in found}
-    mine = [row for row in rows if row["sweep"] == sweep and row["run"] not in names]
-    full = max([len(run.eval_G) for run in found] + [int(row["generations"]) for row in mine])
-    return [row for row in mine if int(row["generations"]) == full]
+    mine = {row["run"]: row for row in rows if row["sweep"] == sweep and row["run"] not in names}
+    full = max([len(run.eval_G) for run in found] + [int(r["generations"]) for r in mine.values()])
+    return [row for row in mine.values() if int(row["generations"]) == full]
 
 
-def _final_scores(runs: list[plots.Run], rows: list[dict], x: str, last: int) -> Table:
+def _final_scores(runs: list[plots.Run], rows: list[dict], x: str, last: int,
+                  g_max: float) -> Table:  # fmt: skip
     """:func:`plots.final_table` of ``runs`` (grouped by their ``group``, the method in the
     fig8-9 sweeps) with the final scores of the kept runs.csv ``rows`` pooled in, by method;
-    a group's G max is the largest of its runs found, or of all runs found."""
+    a group's G max is the largest of its runs found, or ``g_max`` if it has none."""
     if not rows:
         return plots.final_table(runs, x, last=last)
     scores: dict[str, dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
@@ -162,25 +173,22 @@ def _final_scores(runs: list[plots.Run], rows: list[dict], x: str, last: int) ->
         scores[run.group][run.fields[x]].append(float(run.eval_G[-last:].mean()))
     for row in rows:
         scores[row["method"]][_column(row, x)].append(float(row["final_G"]))
-    g_max = max(run.g_max for run in runs)
     shared = {group: (max([r.g_max for r in runs if r.group == group], default=g_max), group)
               for group in scores}  # fmt: skip
     return scores_table(x, scores, shared)
 
 
 def _twins(physical: list[plots.Run], *sources: list[plots.Run]) -> list[plots.Run]:
-    """The idealised twins of ``physical`` runs (the same method and seed): per method, the
-    runs of the first of ``sources`` that has that method."""
-    seeds = {r.fields["seed"] for r in physical}
+    """The idealised twins of ``physical`` runs: for each (method, n_req, seed) of theirs,
+    the run of the first of ``sources`` that has it (none if no source has it)."""
+    wanted = sorted({(r.fields["method"], r.fields["n_req"], r.fields["seed"]) for r in physical})
+    by_cell = [{(r.fields["method"], r.fields["n_req"], r.fields["seed"]): r for r in source}
+               for source in sources]  # fmt: skip
     twins = []
-    for method in sorted({r.fields["method"] for r in physical}):
-        for source in sources:
-            found = [
-                r for r in source if r.fields["method"] == method and r.fields["seed"] in seeds
-            ]
-            if found:
-                twins += found
-                break
+    for cell in wanted:
+        found = next((runs[cell] for runs in by_cell if cell in runs), None)
+        if found is not None:
+            twins.append(found)
     return twins
 
 
@@ -274,6 +282,9 @@ def main() -> None:
     if (OUT / "runs.csv").exists():
         with open(OUT / "runs.csv", newline="") as f:
             previous_rows = list(csv.DictReader(f))
+        for row in previous_rows:  # written before runs.csv had the feedback / variant columns
+            row.setdefault("feedback", "D")
+            row.setdefault("variant", "")
     summary_rows = []
     cell_sections: dict[str, list[str]] = {}  # sweep -> its lines of cells.md
 
@@ -357,14 +368,22 @@ def main() -> None:
         if not runs:
             continue
         gens = max(len(r.eval_G) for r in runs)
-        kept = _kept_finals(previous_rows, name, runs)
+        kept = []
+        if name in POOLED and args.last == POOLED_LAST:
+            kept = _kept_finals(previous_rows, name, runs)
+        elif name in POOLED:
+            print(f"{name}: --last {args.last} is not the committed rows' {POOLED_LAST}: "
+                  "only the runs found are used")  # fmt: skip
         gens = max([gens, *(int(row["generations"]) for row in kept)])
         regroup(runs, ())
-        for n_req in sorted({r.fields["n_req"] for r in runs}):
+        g_max = max(r.g_max for r in runs)
+        for n_req in sorted(
+            {r.fields["n_req"] for r in runs} | {_column(r, "n_req") for r in kept}
+        ):
             subset = [r for r in runs if r.fields["n_req"] == n_req]
-            rows = [row for row in kept if int(row["n_req"]) == n_req]
+            rows = [row for row in kept if _column(row, "n_req") == n_req]
             plots.plot_final(
-                _final_scores(subset, rows, "n_rovers", args.last),
+                _final_scores(subset, rows, "n_rovers", args.last, g_max),
                 OUT / f"fig8-9_{prefix}final_vs_rovers_nreq{n_req}.png",
                 "n_rovers",
                 f"4 POIs, n_req = {n_req}, {gens} generations: final score (last {args.last})",

@@ -259,7 +259,7 @@ def final_table(runs: list[Run], x: str, last: int = 1) -> Table:
             table.messages.append(f"{run.path}: no generations yet, left out")
     scores: dict[str, dict[float, list[float]]] = {}
     shared = {}
-    for group in cells:
+    for group in sorted(cells, key=_natural):
         by_x = cells[group]
         for v in sorted(by_x):
             lengths = sorted(len(run.eval_G) for run in by_x[v])

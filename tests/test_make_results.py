@@ -21,7 +21,7 @@ seeds = 4
 [base.domain]
 n_req = 1
 [base.learn]
-generations = 4
+generations = 60
 [grid]
 method = ["D", "max-critic"]
 n_rovers = [3, 4]
@@ -36,9 +36,11 @@ def make_results(monkeypatch):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
 
-    def run(root: Path, out: Path) -> None:
+    def run(root: Path, out: Path, last: int = 50) -> None:
         monkeypatch.setattr(module, "OUT", out)
-        monkeypatch.setattr(sys, "argv", ["make_results.py", "--root", str(root), "--last", "2"])
+        monkeypatch.setattr(
+            sys, "argv", ["make_results.py", "--root", str(root), "--last", str(last)]
+        )
         module.main()
 
     return run
@@ -54,7 +56,7 @@ def _final(spec) -> float:
 
 def _fake_runs(sweep: Sweep, root: Path, seeds) -> None:
     """Run directories of the sweep's runs of ``seeds`` as training writes them (config and
-    metrics; the last two generations' eval G average to :func:`_final`)."""
+    metrics of 60 generations; the last 50 generations' eval G average to :func:`_final`)."""
     for spec in sweep.runs(root, seeds=seeds):
         out = Path(spec.out)
         out.mkdir(parents=True)
@@ -64,9 +66,10 @@ def _fake_runs(sweep: Sweep, root: Path, seeds) -> None:
             writer = csv.writer(f)
             writer.writerow(["generation", "eval_G", "train_G_mean", "fitness_mean",
                              "critic_loss", "wall_seconds"])  # fmt: skip
-            for g, value in enumerate([0.0, 0.0, final - 0.5, final + 0.5], start=1):
+            curve = [0.0] * 10 + [final - 0.5, final + 0.5] * 25
+            for g, value in enumerate(curve, start=1):
                 writer.writerow([g, value, 0.0, 0.0, "nan", 1.0])
-        (out / "state.json").write_text('{"generation": 4}')  # finished
+        (out / "state.json").write_text('{"generation": 60}')  # finished
 
 
 def _outputs(out: Path) -> tuple:
@@ -131,3 +134,21 @@ def test_unfinished_kept_rows_are_dropped(tmp_path, make_results):
     runs = {row["run"] for row in _outputs(second / "results")[0]}
     assert "method=D_n_rovers=3_seed=0" not in runs
     assert "method=max-critic_n_rovers=3_seed=0" in runs and len(runs) == 7
+
+
+def test_another_last_pools_nothing(tmp_path, make_results, capsys):
+    """Committed final scores average the last 50 generations: with --last 20 they are not
+    pooled with finals of another definition, and the script says so."""
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP)
+    sweep = Sweep.load(path)
+    first, second = tmp_path / "first", tmp_path / "second"
+    _fake_runs(sweep, first / "root", range(0, 1))
+    make_results(first / "root", first / "results")
+    (second / "results").mkdir(parents=True)
+    for name in ("runs.csv", "cells.md"):
+        (second / "results" / name).write_text((first / "results" / name).read_text())
+    _fake_runs(sweep, second / "root", range(1, 2))
+    make_results(second / "root", second / "results", last=20)
+    assert "not the committed rows' 50" in capsys.readouterr().out
+    assert {row["seed"] for row in _outputs(second / "results")[0]} == {"1"}
