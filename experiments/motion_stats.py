@@ -9,7 +9,8 @@ step of the first capture (NaN if none); the mean number of rovers within d_cap 
 (mean over POIs and steps); the rover pairs in contact per step (centres closer than 1.01
 times their radii summed, physics only), summed over the episode. Writes
 ``results/NAME.{csv,md}`` (one row per run and motion model: means with 95% CIs) and
-``results/NAME.png`` (speed and rovers near POIs over the episode, per model); NAME is
+``results/NAME.png`` (speed and rovers near POIs over the episode, per model) with its
+numbers in ``results/NAME_profiles.csv`` (one row per run, model and step); NAME is
 ``motion_stats`` unless given.
 """
 
@@ -79,7 +80,7 @@ def main() -> None:
                 row[f"{c}_ci95"] = f"{float(ci):.3f}"
             row["captured_any"] = f"{np.mean(~np.isnan(stats['first_capture_step'])):.3f}"
             rows.append(row)
-            profiles[(run.name, model)] = stats
+            profiles[(run.name, trained, model)] = stats
     with open(OUT / f"{args.name}.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
@@ -92,12 +93,30 @@ def main() -> None:
         lines.append(f"| {r['run']} | {r['trained_under']} | {r['played_under']} | "
                      + " | ".join(cells) + f" | {float(r['captured_any']):.0%} |")  # fmt: skip
     (OUT / f"{args.name}.md").write_text("\n".join(lines) + "\n")
+    with open(OUT / f"{args.name}_profiles.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["run", "trained_under", "played_under", "step", "mean_move",
+                         "rovers_near_poi"])  # fmt: skip
+        for (run, trained, model), stats in profiles.items():
+            for t, near in enumerate(stats["near_profile"]):  # the move into step t
+                move = stats["speed_profile"][t - 1] if t else float("nan")
+                writer.writerow([run, trained, model, t, f"{move:.5f}", f"{near:.5f}"])
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
-    for (run, model), stats in profiles.items():
-        label = f"{run}: {model}" if len(args.runs) > 1 else model
+    trainings = {trained for _, trained, _ in profiles}
+    by_training = len(args.runs) > 1 and len(trainings) == len(args.runs)
+    runs = list(dict.fromkeys(run for run, _, _ in profiles))
+    style = dict(zip(MOTION_MODELS, ("-", "--", ":"), strict=True))  # the model played under
+    for (run, trained, model), stats in profiles.items():
+        if len(args.runs) == 1:
+            label = model
+        elif by_training:  # one run per training model: colour = trained, line = played
+            label = f"trained {trained}, played {model}"
+        else:
+            label = f"{run}: {model}"
+        look = {"color": f"C{runs.index(run)}", "linestyle": style[model]} if by_training else {}
         axes[0].plot(np.arange(1, len(stats["speed_profile"]) + 1), stats["speed_profile"],
-                     label=label)  # fmt: skip
-        axes[1].plot(stats["near_profile"], label=label)
+                     label=label, **look)  # fmt: skip
+        axes[1].plot(stats["near_profile"], label=label, **look)
     axes[0].set(xlabel="step", ylabel="mean distance moved per step", title="speed")
     axes[1].set(xlabel="step", ylabel="rovers within d_cap of a POI (mean)",
                 title="rovers near the POIs")  # fmt: skip
