@@ -2,13 +2,13 @@
 
     python experiments/transfer.py SWEEP_DIR [SWEEP_DIR ...] [--episodes 100]
 
-For every finished run under the sweep directories (e.g. ``fig4-7-long`` for idealised
-training and ``physics-long`` for physical training), plays the champion on the same fresh
-episodes (the starts of ``physrover evaluate``) under idealised motion and physical motion
-without and with rover collisions. Writes ``results/transfer.csv`` (one row per run and
+For every finished run under the sweep directories (e.g. ``physics-long-ideal`` for
+idealised training and ``physics-long`` for physical training), plays the champion on the
+same fresh episodes (the starts of ``physrover evaluate``) under idealised motion and
+physical motion without and with rover collisions. Writes ``results/transfer.csv`` (one row per run and
 model played under: mean G of its episodes) and ``results/transfer.md``: per method and
 n_req, the mean over seeds (+- 95% CI over seeds) of each (trained under, played under)
-cell.
+cell, then the change from a champion's own model to each other one, paired by champion.
 """
 
 from __future__ import annotations
@@ -72,8 +72,29 @@ def main() -> None:
             mean, ci, n = mean_ci(values) if len(values) else (np.nan, np.nan, 0)
             out.append(f"{float(mean):.2f} +- {float(ci):.2f}")
         lines.append(f"| {method} | {n_req} | {trained} | " + " | ".join(out) + f" | {n} |")
+    lines += ["", *paired_changes(rows)]
     (OUT / "transfer.md").write_text("\n".join(lines) + "\n")
     print(f"wrote {OUT / 'transfer.md'}")
+
+
+def paired_changes(rows: list[dict]) -> list[str]:
+    """A table of what playing under another model does to a champion: per method, n_req
+    and (trained under, played under), the mean over champions (seeds) of G played minus G
+    under its own training model on the same starts, +- 95% CI (paired by champion)."""
+    own = {(r["run"], r["trained_under"]): float(r["mean_G"]) for r in rows
+           if r["played_under"] == r["trained_under"]}  # fmt: skip
+    diffs = defaultdict(list)
+    for r in rows:
+        if r["played_under"] != r["trained_under"] and (r["run"], r["trained_under"]) in own:
+            key = (r["method"], r["n_req"], r["trained_under"], r["played_under"])
+            diffs[key].append(float(r["mean_G"]) - own[(r["run"], r["trained_under"])])
+    lines = ["| method | n_req | trained under | played under | G played - G own (mean +- 95% CI)"
+             " | champions |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for key in sorted(diffs):
+        mean, ci, n = mean_ci(np.array(diffs[key]))
+        lines.append("| " + " | ".join(map(str, key)) + f" | {float(mean):+.2f} +- {float(ci):.2f}"
+                     f" | {n} |")  # fmt: skip
+    return lines
 
 
 if __name__ == "__main__":
