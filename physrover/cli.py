@@ -146,6 +146,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--root", default="runs/sweeps", help="where sweeps go (default runs/sweeps)")
     p.add_argument("--dry-run", action="store_true", help="list the run directories only")
     p.add_argument(
+        "--skip-listed",
+        metavar="CSV",
+        help="leave out the runs this results table (columns sweep, run, generations; "
+        "e.g. experiments/results/runs.csv) lists as finished",
+    )
+    p.add_argument(
         "--drop-state",
         action="store_true",
         help="delete each run's state.npz (~18 MB) when it finishes; it can then not be extended",

@@ -288,6 +288,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     sweep = Sweep.load(args.sweep_file)
     specs = sweep.runs(args.root, seeds=_seeds(args.seeds), drop_state=args.drop_state)
+    if args.skip_listed:
+        from physrover.sweep import listed_finished
+
+        listed = listed_finished(specs, args.skip_listed, sweep.name)
+        specs = [spec for spec in specs if spec.name not in listed]
+        print(f"sweep {sweep.name}: {len(listed)} runs left out, finished in {args.skip_listed}",
+              file=sys.stderr)  # fmt: skip
     if args.dry_run:
         for spec in specs:
             print(spec.out)

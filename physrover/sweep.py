@@ -28,7 +28,9 @@ worker runs one training at a time with torch/BLAS pinned to one thread.
 
 ``--seeds A:B`` runs seeds A .. B-1 only: a sweep too long for one machine's lifetime can be
 run in chunks of seeds (e.g. ``--seeds 0:5`` then ``--seeds 5:10``), each run's name and
-results being those it has in the whole sweep.
+results being those it has in the whole sweep. ``--skip-listed CSV`` leaves out the runs a
+results table (``experiments/results/runs.csv``: columns sweep, run, generations) lists as
+finished, so a later machine runs only what no earlier one finished (:func:`listed_finished`).
 """
 
 from __future__ import annotations
@@ -134,6 +136,28 @@ def parse_seeds(text: str) -> int | range:
     raise ConfigError(
         "seeds", f"must be N >= 1 (seeds 0..N-1) or A:B with 0 <= A < B, got {text!r}"
     )
+
+
+def listed_finished(specs: list[RunSpec], table: str | Path, sweep: str) -> set[str]:
+    """The names of the ``specs`` that the CSV ``table`` (columns ``sweep``, ``run``,
+    ``generations``) lists under ``sweep`` with at least the generations their config asks
+    for: runs an earlier machine finished."""
+    import csv
+
+    path = Path(table)
+    if not path.is_file():
+        raise ConfigError("skip-listed", f"{path} is not a file")
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        missing = {"sweep", "run", "generations"} - set(reader.fieldnames or ())
+        if missing:
+            raise ConfigError("skip-listed", f"{path} has no column {sorted(missing)[0]!r}")
+        done = {row["run"]: int(row["generations"]) for row in reader if row["sweep"] == sweep}
+    return {
+        spec.name
+        for spec in specs
+        if spec.name in done and done[spec.name] >= RunConfig.from_toml(spec.config_toml).length
+    }
 
 
 def _slug(value: Any) -> str:

@@ -109,6 +109,33 @@ def test_sweep_runs_a_chunk_of_seeds(tmp_path, capsys):
     assert "seeds: must be" in capsys.readouterr().err
 
 
+def test_sweep_skips_the_runs_a_results_table_lists_as_finished(tmp_path, capsys):
+    """A later machine runs what no earlier one finished: listed with the config's
+    generations (or more) is finished; fewer, another sweep's or unlisted runs are not."""
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text("[sweep]\nname = 'x'\nseeds = 2\n[base.learn]\ngenerations = 40\n"
+                     "[grid]\nn_req = [1, 2]\n")  # fmt: skip
+    table = tmp_path / "runs.csv"
+    table.write_text("sweep,run,generations,final_G\n"
+                     "x,n_req=1_seed=0,40,1.0\n"  # finished
+                     "x,n_req=1_seed=1,39,1.0\n"  # cut short
+                     "y,n_req=2_seed=0,40,1.0\n")  # another sweep's  # fmt: skip
+    args = ["sweep", str(sweep), "--dry-run", "--root", str(tmp_path), "--skip-listed", str(table)]
+    assert main(args) == 0
+    out, err = capsys.readouterr()
+    assert [Path(p).name for p in out.split()] == [
+        "n_req=1_seed=1",
+        "n_req=2_seed=0",
+        "n_req=2_seed=1",
+    ]
+    assert "1 runs left out" in err
+    table.write_text("sweep,run\nx,n_req=1_seed=0\n")
+    assert main(args) == 2
+    assert "no column 'generations'" in capsys.readouterr().err
+    assert main([*args[:-1], str(tmp_path / "none.csv")]) == 2
+    assert "is not a file" in capsys.readouterr().err
+
+
 def test_generation_numbers_agree_across_files(tmp_path):
     out = tmp_path / "run"
     stream = io.StringIO()
