@@ -5,10 +5,11 @@
 For every finished run under the sweep directories (e.g. ``physics-long-ideal`` for
 idealised training and ``physics-long`` for physical training), plays the champion on the
 same fresh episodes (the starts of ``physrover evaluate``) under idealised motion and
-physical motion without and with rover collisions. Writes ``results/transfer.csv`` (one row per run and
-model played under: mean G of its episodes) and ``results/transfer.md``: per method and
-n_req, the mean over seeds (+- 95% CI over seeds) of each (trained under, played under)
-cell, then the change from a champion's own model to each other one, paired by champion.
+physical motion without and with rover collisions. Writes ``results/transfer.csv`` (one
+row per run and model played under: mean G of its episodes) and ``results/transfer.md``:
+per method and n_req, the mean over seeds (+- 95% CI over seeds) of each (trained under,
+played under) cell, then the change from a champion's own model to each other one, paired
+by champion.
 """
 
 from __future__ import annotations
