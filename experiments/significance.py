@@ -101,6 +101,10 @@ COMPARISONS = [
     ],  # fmt: skip
 ]
 
+MIN_SEEDS = 2
+"""Comparisons of cells with fewer seeds a side are left out: one seed against one has no
+variance to test against (Welch's t is undefined, every permutation p is 1)."""
+
 CLAIMS = {
     1: "all methods learn at n_req 3",
     3: "the average improves on D at n_req 4-5",
@@ -141,7 +145,7 @@ def compare(cells: dict) -> list[dict]:
         sweep_b = b[0] if len(b) == 4 else sweep
         b = b[1:] if len(b) == 4 else b
         x, y = cells.get((sweep, *a)), cells.get((sweep_b, *b))
-        if not x or not y:
+        if not x or not y or min(len(x), len(y)) < MIN_SEEDS:  # e.g. a sweep still in chunks
             continue
         t, df = welch_t(x, y)
         rows.append(
