@@ -504,13 +504,7 @@ def main() -> None:
             return
         raise SystemExit(f"no sweeps found under {root}")
     # Sweeps not present under --root keep their rows and tables from the previous run.
-    kept_rows = []
-    if (OUT / "runs.csv").exists():
-        with open(OUT / "runs.csv", newline="") as f:
-            kept_rows = [row for row in csv.DictReader(f) if row["sweep"] not in cell_sections]
-        for row in kept_rows:  # written before runs.csv had the feedback / variant columns
-            row.setdefault("feedback", "D")
-            row.setdefault("variant", "")
+    kept_rows = [row for row in previous_rows if row["sweep"] not in cell_sections]
     if (OUT / "cells.md").exists():
         for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
             name, body = section.split("\n", 1)
