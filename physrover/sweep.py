@@ -106,14 +106,18 @@ class Sweep:
         self, root: str | Path, seeds: int | range | None = None, drop_state: bool = False
     ) -> list[RunSpec]:
         """Every cell x seed, with its resolved config; invalid cells are config errors.
+        In the order they run: every cell's first seed, then every cell's second, ... (so a
+        sweep stopped part-way has its finished seeds spread evenly over the cells).
         ``seeds``: how many (seeds 0 .. seeds-1) or which (a range); default the file's.
         ``drop_state``: each run deletes its state.npz when it finishes."""
         fields = list(self.grid)
         specs = []
-        cells = itertools.product(itertools.product(*(self.grid[f] for f in fields)), self.variants)
+        cells = list(
+            itertools.product(itertools.product(*(self.grid[f] for f in fields)), self.variants)
+        )
         chosen = seeds if isinstance(seeds, range) else range(seeds or self.seeds)
-        for values, variant in cells:
-            for seed in chosen:
+        for seed in chosen:  # seed-major: a sweep stopped part-way leaves every cell its seeds
+            for values, variant in cells:
                 overrides = {**dict(zip(fields, values, strict=True)), **variant, "seed": seed}
                 config = self.base.with_overrides(overrides)
                 name = "_".join(f"{f}={_slug(v)}" for f, v in overrides.items())

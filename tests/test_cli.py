@@ -103,7 +103,7 @@ def test_sweep_runs_a_chunk_of_seeds(tmp_path, capsys):
     assert main(["sweep", str(sweep), "--dry-run", "--root", str(tmp_path), "--seeds", "8:10"]) == 0
     listed = capsys.readouterr().out.split()
     assert [Path(p).name for p in listed] == [
-        "n_req=1_seed=8", "n_req=1_seed=9", "n_req=2_seed=8", "n_req=2_seed=9"
+        "n_req=1_seed=8", "n_req=2_seed=8", "n_req=1_seed=9", "n_req=2_seed=9"
     ]  # fmt: skip
     assert main(["sweep", str(sweep), "--dry-run", "--seeds", "10:8"]) == 2
     assert "seeds: must be" in capsys.readouterr().err
@@ -124,8 +124,8 @@ def test_sweep_skips_the_runs_a_results_table_lists_as_finished(tmp_path, capsys
     assert main(args) == 0
     out, err = capsys.readouterr()
     assert [Path(p).name for p in out.split()] == [
-        "n_req=1_seed=1",
         "n_req=2_seed=0",
+        "n_req=1_seed=1",
         "n_req=2_seed=1",
     ]
     assert "1 runs left out" in err

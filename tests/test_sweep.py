@@ -54,13 +54,19 @@ def test_grid_expands_to_cells_times_seeds(tmp_path):
     assert len(_sweep(tmp_path).runs(tmp_path, seeds=3)) == 6
 
 
+def test_runs_are_seed_major(tmp_path):
+    """Every cell's seed 0 runs before any cell's seed 1: a sweep stopped part-way has its
+    finished runs spread over the cells, not all seeds of the first cells."""
+    names = [os.path.basename(s.out) for s in _sweep(tmp_path).runs(tmp_path, seeds=3)]
+    assert names == [f"method={m}_seed={seed}" for seed in range(3) for m in ("D", "max-critic")]
+
+
 def test_chunks_of_seeds_are_the_whole_sweeps_runs(tmp_path):
     """--seeds 0:2 then 2:5 gives the runs of --seeds 5, names, configs and directories."""
     sweep = _sweep(tmp_path)
     whole = sweep.runs(tmp_path, seeds=5)
     chunks = sweep.runs(tmp_path, seeds=range(0, 2)) + sweep.runs(tmp_path, seeds=range(2, 5))
-    key = lambda spec: spec.name  # noqa: E731
-    assert sorted(chunks, key=key) == sorted(whole, key=key)
+    assert chunks == whole  # seed-major: the chunks are the whole sweep's list, cut
     later = sweep.runs(tmp_path, seeds=parse_seeds("3:5"))
     assert sorted(s.name for s in later) == [
         "method=D_seed=3", "method=D_seed=4", "method=max-critic_seed=3", "method=max-critic_seed=4"
