@@ -7,6 +7,8 @@ Layout of a run directory::
     state.npz, state.json      the latest full state (populations, critics, replay buffers,
                                every RNG state), replaced atomically every checkpoint
     champions/gen_NNNNNN.npy   (R, P) genomes of the champion team at each checkpoint
+    provenance.json            the code and machine of every start and resume
+                               (physrover.provenance)
 
 ``train`` starts a run in a new (or empty) directory, or continues one with ``resume=True``;
 a resumed run ends bit-identical to an uninterrupted one with the same seed.
@@ -29,6 +31,7 @@ import numpy as np
 from physrover.config import ConfigError, RunConfig
 from physrover.learn.ccea import CCEA, GenerationStats, stats_header
 from physrover.progress import Progress
+from physrover.provenance import record_segment
 
 CONFIG, METRICS, STATE_NPZ, STATE_JSON, CHAMPIONS = (
     "config.toml",
@@ -271,6 +274,7 @@ def train(
         _write_metrics(out / METRICS, rows)
     elif resume:
         _write_metrics(out / METRICS, [])  # started but never checkpointed: start over
+    record_segment(out, ccea.generation)
 
     latest: list[GenerationStats] = []
 

@@ -19,6 +19,7 @@ from pathlib import Path
 from physrover.config import RunConfig
 from physrover.learn.ccea import stats_header
 from physrover.progress import Progress
+from physrover.provenance import record_segment
 from physrover.registry import TRAINERS
 from physrover.runs import (
     METRICS,
@@ -72,6 +73,7 @@ def train_trainer(
         rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= trainer.iterations]
     if resume:
         _write_metrics(out / METRICS, rows, metrics_header())
+    record_segment(out, trainer.iterations)
     log = TensorBoardLog(out) if tensorboard else None
     total = trainer.total_iterations
     label = f"{config.learn.method} iteration"

@@ -10,6 +10,7 @@ from physrover.evaluate import evaluate_run
 from physrover.learn.ccea import stats_header
 from physrover.marl.common import Trainer
 from physrover.plots import load_runs
+from physrover.provenance import code_fingerprint, read_provenance
 from physrover.runs import read_metrics
 
 TINY = ["--set", "n_rovers=3", "--set", "n_req=1", "--set", "steps=10",
@@ -39,6 +40,8 @@ def test_train_writes_a_run_directory_the_other_commands_read(method, tmp_path, 
     assert config.trainer.seed == config.learn.seed and config.trainer.eval_episodes == 2
     assert load_runs([out])[0].episodes.tolist() == [4, 8, 12, 16]  # curves --x episodes
     assert len(evaluate_run(out, episodes=3).G) == 3  # the policies as CCEA genomes
+    (segment,) = read_provenance(out)  # the trainer's run records its code too
+    assert segment["from_generation"] == 0 and segment["code"] == code_fingerprint()
     capsys.readouterr()
     assert main(["train", "--resume", str(out)]) == 0
     assert "is finished: 4 iterations" in capsys.readouterr().out

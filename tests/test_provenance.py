@@ -1,0 +1,69 @@
+"""provenance.json: every start and resume of a run records the code and machine."""
+
+import json
+import shutil
+import warnings
+
+import numpy as np
+import pytest
+
+import physrover
+from physrover import provenance
+from physrover.config import RunConfig
+from physrover.provenance import PACKAGE_DIR, code_fingerprint, fingerprint, read_provenance
+from physrover.runs import train
+
+EASY = dict(n_rovers=3, n_req=1, population=20, steps=50, method="D", checkpoint_every=3)
+
+
+def test_fingerprint_is_the_sources_not_the_place(tmp_path):
+    copy = tmp_path / "copy" / "physrover"
+    shutil.copytree(PACKAGE_DIR, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    assert fingerprint(copy) == code_fingerprint()
+    (copy / "compiled.py").write_text((copy / "compiled.py").read_text() + "\n# edited\n")
+    assert fingerprint(copy) != code_fingerprint()
+    (copy / "compiled.py").write_text((PACKAGE_DIR / "compiled.py").read_text())
+    assert fingerprint(copy) == code_fingerprint()
+    (copy / "compiled.py").rename(copy / "compiled2.py")  # same bytes, other file: other code
+    assert fingerprint(copy) != code_fingerprint()
+
+
+def test_a_run_records_a_segment_per_start_and_resume(tmp_path):
+    config = RunConfig().with_overrides(EASY)
+    out = train(config, tmp_path / "run", generations=5, progress=False)
+    (first,) = read_provenance(out)
+    assert first["from_generation"] == 0
+    assert first["physrover"] == physrover.__version__
+    assert first["code"] == code_fingerprint() and len(first["code"]) == 64
+    assert first["numpy"] == np.__version__ and first["cpu"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the same code: no warning
+        train(None, out, resume=True, generations=8, progress=False)
+    segments = read_provenance(out)
+    assert [s["from_generation"] for s in segments] == [0, 5]  # generation 5: the end's checkpoint
+    assert segments[1]["code"] == first["code"]
+
+
+def test_resuming_with_other_code_warns_and_is_recorded(tmp_path):
+    config = RunConfig().with_overrides(EASY)
+    out = train(config, tmp_path / "run", generations=4, progress=False)
+    data = json.loads((out / "provenance.json").read_text())
+    data["segments"][0].update(code="0" * 64, physrover="0.0.1")  # as if trained by another
+    (out / "provenance.json").write_text(json.dumps(data))
+    with pytest.warns(RuntimeWarning, match=r"generation 4 with other code .*0\.0\.1, code 0{12}"):
+        train(None, out, resume=True, generations=6, progress=False)
+    assert [s["code"] for s in read_provenance(out)] == ["0" * 64, code_fingerprint()]
+
+
+def test_a_restart_before_any_checkpoint_replaces_its_segment(tmp_path, monkeypatch):
+    """Two segments from one generation: the first left nothing past it, only the second
+    stays (a run that crashed before its first checkpoint restarts from generation 0)."""
+    out = tmp_path / "run"
+    out.mkdir()
+    provenance.record_segment(out, 0)
+    monkeypatch.setattr(provenance, "code_fingerprint", lambda: "f" * 64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no warning: the replaced segment trained nothing
+        provenance.record_segment(out, 0)
+    assert [s["code"] for s in read_provenance(out)] == ["f" * 64]
+    assert read_provenance(tmp_path) == []  # not a run: no segments
