@@ -8,7 +8,8 @@ see the same vector width. So every start and every resume appends a *segment*::
     {"segments": [{"from_generation": 0, "physrover": "0.4.0",
                    "code": "<sha256 of the package's sources>", "git": "<commit>" or null,
                    "python": ..., "numpy": ..., "numba": ..., "torch": ..., "pymunk": ...,
-                   "cpu": "<model name>", "machine": "x86_64", "started": "<UTC ISO time>"},
+                   "cpu": "<model name>", "llvm_cpu": "znver4", "machine": "x86_64",
+                   "started": "<UTC ISO time>"},
                   ...]}
 
 ``code`` (:func:`code_fingerprint`) identifies the installed package's source exactly, also
@@ -79,6 +80,17 @@ def _cpu() -> str:
     return platform.processor() or "unknown"
 
 
+def _llvm_cpu() -> str | None:
+    """The CPU numba compiles the kernels for (LLVM's name, e.g. ``znver4``): what decides
+    their vector width, and so the last bits of the critics' reassociated sums."""
+    try:
+        import llvmlite.binding
+
+        return str(llvmlite.binding.get_host_cpu_name())
+    except Exception:  # noqa: BLE001 - provenance must not stop a run
+        return None
+
+
 def _version(package: str) -> str | None:
     try:
         return metadata.version(package)
@@ -98,6 +110,7 @@ def describe(from_generation: int) -> dict:
         "python": platform.python_version(),
         **{name: _version(name) for name in ("numpy", "numba", "torch", "pymunk")},
         "cpu": _cpu(),
+        "llvm_cpu": _llvm_cpu(),
         "machine": platform.machine(),
         "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }

@@ -35,7 +35,7 @@ def test_a_run_records_a_segment_per_start_and_resume(tmp_path):
     assert first["from_generation"] == 0
     assert first["physrover"] == physrover.__version__
     assert first["code"] == code_fingerprint() and len(first["code"]) == 64
-    assert first["numpy"] == np.__version__ and first["cpu"]
+    assert first["numpy"] == np.__version__ and first["cpu"] and first["llvm_cpu"]
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the same code: no warning
         train(None, out, resume=True, generations=8, progress=False)
