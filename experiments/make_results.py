@@ -4,7 +4,8 @@
 
 Writes under experiments/results/: learning-curve PNGs with their CSVs (mean eval G and
 95% CI half-width per generation, per group), final-score plots with CSVs, runs.csv (one
-row per run: its config cell, seed, final score, wall time) and cells.md (the table of
+row per run: its config cell, seed, final score, wall time, the code and CPU that trained
+it: :func:`provenance_columns`) and cells.md (the table of
 final mean G +- 95% CI per cell that RESULTS.md quotes). Sweeps missing under ``--root``
 keep their rows of runs.csv and their sections of cells.md, so sweeps can be re-made one
 at a time. ``fig8-9-paper`` (:data:`POOLED`), a final-score sweep run in chunks of seeds
@@ -30,6 +31,7 @@ import numpy as np
 from physrover import plots
 from physrover.curve_data import Table, scores_table
 from physrover.evaluate import motion_model
+from physrover.provenance import read_provenance
 from physrover.runs import find_runs, read_metrics
 
 OUT = Path("experiments/results")
@@ -128,6 +130,21 @@ def _max_critic_at(n_req: int, episodes: int) -> str:
         if int(row["generation"]) - first + 1 == generation:
             return f"{float(row['mean']):.2f} +- {float(row['ci95_half_width']):.2f}"
     return "n/a"
+
+
+def provenance_columns(run_dir: Path) -> dict[str, str]:
+    """runs.csv's ``code`` and ``cpu`` of a run from its provenance.json: the first 12 hex
+    digits of each distinct source fingerprint its segments were trained with, and each
+    distinct CPU numba compiled for, in order, joined by ``+``; ``?+`` in front when the
+    generations before the first segment are of unknown code (a run begun before runs
+    recorded provenance); both empty for a run with no provenance.json."""
+    segments = read_provenance(run_dir)
+    if not segments:
+        return {"code": "", "cpu": ""}
+    unknown = "?+" if segments[0]["from_generation"] > 0 else ""
+    codes = dict.fromkeys(s["code"][:12] for s in segments)
+    cpus = dict.fromkeys(str(s.get("llvm_cpu")) for s in segments)
+    return {"code": unknown + "+".join(codes), "cpu": unknown + "+".join(cpus)}
 
 
 def _finished(run_dir: Path) -> bool:
@@ -285,6 +302,9 @@ def main() -> None:
         for row in previous_rows:  # written before runs.csv had the feedback / variant columns
             row.setdefault("feedback", "D")
             row.setdefault("variant", "")
+        for row in previous_rows:  # written before runs recorded their provenance
+            row.setdefault("code", "")
+            row.setdefault("cpu", "")
     summary_rows = []
     cell_sections: dict[str, list[str]] = {}  # sweep -> its lines of cells.md
 
@@ -319,6 +339,7 @@ def main() -> None:
                     "final_G": round(final, 4),
                     "max_eval_G": float(run.eval_G.max()),
                     "wall_seconds": round(rows[-1]["wall_seconds"], 1),
+                    **provenance_columns(run.path),
                 }
             )
         if kept:  # kept and found runs in the order of a sweep found whole (find_runs')

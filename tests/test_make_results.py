@@ -4,6 +4,7 @@ runs.csv rows, cells.md table and figure numbers as the whole sweep found on one
 
 import csv
 import importlib.util
+import json
 import sys
 from pathlib import Path
 
@@ -152,3 +153,40 @@ def test_another_last_pools_nothing(tmp_path, make_results, capsys):
     make_results(second / "root", second / "results", last=20)
     assert "not the committed rows' 50" in capsys.readouterr().out
     assert {row["seed"] for row in _outputs(second / "results")[0]} == {"1"}
+
+
+def test_runs_csv_names_the_code_and_cpu_that_trained_each_run(tmp_path, make_results):
+    """A run trained in two pieces by other code on other CPUs lists both; a run resumed
+    from provenance-less generations starts with '?'; a run without provenance.json has
+    empty columns, and another machine's make_results keeps the pooled rows' values."""
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP)
+    sweep = Sweep.load(path)
+    _fake_runs(sweep, tmp_path / "root", range(0, 1))
+    runs = tmp_path / "root" / "fig8-9-paper"
+
+    def segment(start, code, cpu):
+        return {"from_generation": start, "code": code * 64, "llvm_cpu": cpu}
+
+    pieces = [segment(0, "a", "znver4"), segment(30, "b", "emeraldrapids"), segment(45, "b", "x")]
+    (runs / "method=D_n_rovers=3_seed=0" / "provenance.json").write_text(
+        json.dumps({"segments": pieces})
+    )
+    (runs / "method=D_n_rovers=4_seed=0" / "provenance.json").write_text(
+        json.dumps({"segments": [segment(20, "c", "znver4")]})
+    )
+    make_results(tmp_path / "root", tmp_path / "results")
+    rows = {r["run"]: r for r in csv.DictReader(open(tmp_path / "results" / "runs.csv"))}
+    two = rows["method=D_n_rovers=3_seed=0"]
+    assert (two["code"], two["cpu"]) == ("a" * 12 + "+" + "b" * 12, "znver4+emeraldrapids+x")
+    assert rows["method=D_n_rovers=4_seed=0"]["code"] == "?+" + "c" * 12
+    assert rows["method=max-critic_n_rovers=3_seed=0"]["code"] == ""
+    later = tmp_path / "later"  # the next machine: seed 1 on disk, seed 0 only in runs.csv
+    (later / "results").mkdir(parents=True)
+    for name in ("runs.csv", "cells.md"):
+        (later / "results" / name).write_text((tmp_path / "results" / name).read_text())
+    _fake_runs(sweep, later / "root", range(1, 2))
+    make_results(later / "root", later / "results")
+    kept = {r["run"]: r for r in csv.DictReader(open(later / "results" / "runs.csv"))}
+    assert kept["method=D_n_rovers=4_seed=0"]["code"] == "?+" + "c" * 12
+    assert kept["method=D_n_rovers=3_seed=1"]["code"] == "" and len(kept) == 8
