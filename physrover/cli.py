@@ -32,7 +32,9 @@ from physrover.video import VideoError
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--config", metavar="FILE.toml", help="config file ([domain] and [learn] tables)"
+        "--config",
+        metavar="FILE.toml",
+        help="config file ([domain], [physics], [scenario], [sensor], [learn] tables)",
     )
     p.add_argument(
         "--set",
@@ -62,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
 
-    p = sub.add_parser("info", help="print the resolved run config ([domain], [learn]) as TOML")
+    p = sub.add_parser("info", help="print the resolved run config (every table) as TOML")
     _add_config_args(p)
     p.set_defaults(func=cmd_info)
 
