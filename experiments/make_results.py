@@ -142,8 +142,8 @@ def provenance_columns(run_dir: Path) -> dict[str, str]:
     if not segments:
         return {"code": "", "cpu": ""}
     unknown = "?+" if segments[0]["from_generation"] > 0 else ""
-    codes = dict.fromkeys(s["code"][:12] for s in segments)
-    cpus = dict.fromkeys(str(s.get("llvm_cpu")) for s in segments)
+    codes = dict.fromkeys((s["code"] or "?")[:12] for s in segments)
+    cpus = dict.fromkeys(s.get("llvm_cpu") or "?" for s in segments)
     return {"code": unknown + "+".join(codes), "cpu": unknown + "+".join(cpus)}
 
 

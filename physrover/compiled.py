@@ -26,13 +26,26 @@ _PACKAGE = Path(__file__).parent
 _cache_dir: str | None = None
 
 
-def sources_key(root: Path = _PACKAGE) -> str:
-    """A hash of the paths and contents of every ``*.py`` file under ``root``."""
+def source_digest(root: Path = _PACKAGE) -> str:
+    """sha256 (hex) of the ``*.py`` files under ``root`` (the package's sources): each
+    one's path relative to ``root`` (POSIX form) and bytes, in the sorted order of those
+    paths; ``""`` if there are none (a package imported from a zip). Equal sources give
+    equal digests wherever installed (``__pycache__`` holds no ``*.py``; dangling links,
+    e.g. an editor's lock files, are skipped)."""
+    files = sorted((p.relative_to(root).as_posix(), p) for p in root.rglob("*.py") if p.is_file())
+    if not files:
+        return ""
     digest = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        digest.update(path.relative_to(root).as_posix().encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()[:16]
+    for relative, path in files:
+        data = path.read_bytes()
+        digest.update(f"{relative}\0{len(data)}\0".encode())
+        digest.update(data)
+    return digest.hexdigest()
+
+
+def sources_key(root: Path = _PACKAGE) -> str:
+    """The kernels' cache key: the first 16 hex digits of :func:`source_digest`."""
+    return source_digest(root)[:16]
 
 
 def cache_dir() -> str:

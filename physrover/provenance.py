@@ -8,14 +8,18 @@ see the same vector width. So every start and every resume appends a *segment*::
     {"segments": [{"from_generation": 0, "physrover": "0.4.0",
                    "code": "<sha256 of the package's sources>", "git": "<commit>" or null,
                    "python": ..., "numpy": ..., "numba": ..., "torch": ..., "pymunk": ...,
-                   "cpu": "<model name>", "llvm_cpu": "znver4", "machine": "x86_64",
-                   "started": "<UTC ISO time>"},
+                   "cpu": "<model name>", "llvm_cpu": "znver4", "cpu_features": "<digest>",
+                   "machine": "x86_64", "started": "<UTC ISO time>"},
                   ...]}
 
-``code`` (:func:`code_fingerprint`) identifies the installed package's source exactly, also
-in a non-editable install of a ``git archive``, which has no commit to ask; ``git`` is the
-commit of a checkout the package is imported from (with ``+dirty`` for uncommitted changes),
-else null. A resume with other code than the last segment's warns (:func:`record_segment`).
+``code`` (:func:`code_fingerprint`) identifies the installed package's sources exactly
+(every ``.py`` file, docstrings and help texts included), also in a non-editable install of
+a ``git archive``, which has no commit to ask; ``git`` is the commit of a checkout the
+package is imported from (with ``+dirty`` for uncommitted changes to tracked files), else
+null. Both are taken once per process, when its first run starts. ``llvm_cpu`` and
+``cpu_features`` (a digest of the features numba compiles for) say what the kernels were
+compiled for. A resume with other code, or for another ``llvm_cpu`` or ``cpu_features``,
+than the last segment's warns (:func:`record_segment`).
 """
 
 from __future__ import annotations
@@ -30,28 +34,20 @@ import warnings
 from importlib import metadata
 from pathlib import Path
 
+from physrover.compiled import source_digest
+
 PROVENANCE = "provenance.json"
 PACKAGE_DIR = Path(__file__).resolve().parent
 
 
-def fingerprint(package_dir: Path) -> str:
-    """sha256 (hex) over the ``.py`` files below ``package_dir``: each file's path relative
-    to it and its bytes, in sorted order. Equal for equal sources wherever installed."""
-    digest = hashlib.sha256()
-    for path in sorted(package_dir.rglob("*.py")):
-        relative = path.relative_to(package_dir).as_posix()
-        data = path.read_bytes()
-        digest.update(f"{relative}\0{len(data)}\0".encode())
-        digest.update(data)
-    return digest.hexdigest()
+@functools.cache
+def code_fingerprint() -> str | None:
+    """:func:`physrover.compiled.source_digest` of this installed physrover package (None
+    if it has no ``.py`` sources to read), taken once per process."""
+    return source_digest(PACKAGE_DIR) or None
 
 
 @functools.cache
-def code_fingerprint() -> str:
-    """:func:`fingerprint` of this installed physrover package."""
-    return fingerprint(PACKAGE_DIR)
-
-
 def _git_commit() -> str | None:
     """The commit of the checkout this package is imported from (``+dirty`` with changes to
     tracked files), or None outside one (an installed package) or without git."""
@@ -61,9 +57,9 @@ def _git_commit() -> str | None:
     try:
         head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
                               text=True, check=True, timeout=10).stdout.strip()  # fmt: skip
-        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain",
-                                "--untracked-files=no"], capture_output=True, text=True,
-                               check=True, timeout=10).stdout.strip()  # fmt: skip
+        dirty = subprocess.run(["git", "--no-optional-locks", "-C", str(root), "status",
+                                "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, check=True, timeout=10).stdout.strip()  # fmt: skip
     except (OSError, subprocess.SubprocessError):
         return None
     return head + ("+dirty" if dirty else "")
@@ -80,15 +76,21 @@ def _cpu() -> str:
     return platform.processor() or "unknown"
 
 
-def _llvm_cpu() -> str | None:
-    """The CPU numba compiles the kernels for (LLVM's name, e.g. ``znver4``): what decides
-    their vector width, and so the last bits of the critics' reassociated sums."""
+@functools.cache
+def _compile_target() -> tuple[str | None, str | None]:
+    """(CPU name, digest of the CPU features) numba compiles the kernels for: its
+    ``NUMBA_CPU_NAME`` / ``NUMBA_CPU_FEATURES`` if set, else the host's as LLVM sees them
+    (e.g. ``znver4``; a VM may hide features). They decide the kernels' vector width, and so
+    the last bits of the critics' reassociated sums. (None, None) if they cannot be read."""
     try:
         import llvmlite.binding
+        import numba
 
-        return str(llvmlite.binding.get_host_cpu_name())
-    except Exception:  # noqa: BLE001 - provenance must not stop a run
-        return None
+        name = numba.config.CPU_NAME or llvmlite.binding.get_host_cpu_name()
+        features = numba.config.CPU_FEATURES or llvmlite.binding.get_host_cpu_features().flatten()
+    except Exception:  # provenance must not stop a run
+        return None, None
+    return str(name), hashlib.sha256(str(features).encode()).hexdigest()[:12]
 
 
 def _version(package: str) -> str | None:
@@ -110,10 +112,15 @@ def describe(from_generation: int) -> dict:
         "python": platform.python_version(),
         **{name: _version(name) for name in ("numpy", "numba", "torch", "pymunk")},
         "cpu": _cpu(),
-        "llvm_cpu": _llvm_cpu(),
+        "llvm_cpu": _compile_target()[0],
+        "cpu_features": _compile_target()[1],
         "machine": platform.machine(),
         "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
+
+
+def _warn(message: str) -> None:
+    warnings.warn(message, RuntimeWarning, stacklevel=3)
 
 
 def read_provenance(run_dir: Path) -> list[dict]:
@@ -127,23 +134,33 @@ def read_provenance(run_dir: Path) -> list[dict]:
 
 def record_segment(run_dir: Path, from_generation: int) -> dict:
     """Append this process's segment to ``run_dir/provenance.json`` and return it; warn if
-    the run was trained so far with other code than this (by the last segment's ``code``).
+    the run was trained so far with other code than this, or with kernels compiled for
+    another CPU (by the last segment's ``code``, ``llvm_cpu`` and ``cpu_features``; an
+    unknown code, None, is not compared).
     Earlier segments from ``from_generation`` on are dropped: they left no checkpoint
     past it (a start or resume that stopped before its first checkpoint)."""
     run_dir = Path(run_dir)
     segments = [s for s in read_provenance(run_dir) if s["from_generation"] < from_generation]
     segment = describe(from_generation)
-    if segments and segments[-1]["code"] != segment["code"]:
+    if segments:
         before = segments[-1]
-        warnings.warn(
-            f"{run_dir}: resuming at generation {from_generation} with other code than "
-            f"generation {before['from_generation']} on was trained with (physrover "
-            f"{before['physrover']}, code {before['code'][:12]}; now {segment['physrover']}, "
-            f"code {segment['code'][:12]}): the run is bit-identical to an uninterrupted one "
-            "only if the training code is the same",
-            RuntimeWarning,
-            stacklevel=2,
-        )
+        since = f"generation {before['from_generation']} on"
+        old, new = before["code"], segment["code"]
+        if None not in (old, new) and old != new:
+            _warn(
+                f"{run_dir}: resuming at generation {from_generation} with other code than "
+                f"{since} was trained with (physrover {before['physrover']}, code {old[:12]}; "
+                f"now {segment['physrover']}, code {new[:12]}): the run is bit-identical to "
+                "an uninterrupted one only if the training code is the same"
+            )
+        target = ("llvm_cpu", "cpu_features")
+        if any(before.get(k) != segment[k] for k in target):
+            _warn(
+                f"{run_dir}: resuming at generation {from_generation} with kernels compiled "
+                f"for another CPU than {since} was ({before.get('llvm_cpu')}, now "
+                f"{segment['llvm_cpu']}): the critics' sums may round differently, so the "
+                "run may not be bit-identical to an uninterrupted one"
+            )
     segments.append(segment)
     tmp = run_dir / (PROVENANCE + ".tmp")
     tmp.write_text(json.dumps({"segments": segments}, indent=1) + "\n")

@@ -274,7 +274,8 @@ def train(
         _write_metrics(out / METRICS, rows)
     elif resume:
         _write_metrics(out / METRICS, [])  # started but never checkpointed: start over
-    record_segment(out, ccea.generation)
+    if ccea.generation < total:  # a finished run resumed trains nothing: no segment
+        record_segment(out, ccea.generation)
 
     latest: list[GenerationStats] = []
 

@@ -73,7 +73,8 @@ def train_trainer(
         rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= trainer.iterations]
     if resume:
         _write_metrics(out / METRICS, rows, metrics_header())
-    record_segment(out, trainer.iterations)
+    if trainer.iterations < trainer.total_iterations:  # a finished run trains nothing
+        record_segment(out, trainer.iterations)
     log = TensorBoardLog(out) if tensorboard else None
     total = trainer.total_iterations
     label = f"{config.learn.method} iteration"

@@ -190,3 +190,26 @@ def test_runs_csv_names_the_code_and_cpu_that_trained_each_run(tmp_path, make_re
     kept = {r["run"]: r for r in csv.DictReader(open(later / "results" / "runs.csv"))}
     assert kept["method=D_n_rovers=4_seed=0"]["code"] == "?+" + "c" * 12
     assert kept["method=D_n_rovers=3_seed=1"]["code"] == "" and len(kept) == 8
+
+
+def test_rows_written_before_the_provenance_columns_pool(tmp_path, make_results):
+    """A committed runs.csv without the code and cpu columns (before 0.4.0's last
+    commits) pools with runs found on disk: its rows get empty values."""
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP)
+    sweep = Sweep.load(path)
+    _fake_runs(sweep, tmp_path / "first" / "root", range(0, 1))
+    make_results(tmp_path / "first" / "root", tmp_path / "first" / "results")
+    rows = list(csv.DictReader(open(tmp_path / "first" / "results" / "runs.csv")))
+    old = tmp_path / "later" / "results"
+    old.mkdir(parents=True)
+    with open(old / "runs.csv", "w", newline="") as f:
+        fields = [k for k in rows[0] if k not in ("code", "cpu")]
+        writer = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    _fake_runs(sweep, tmp_path / "later" / "root", range(1, 2))
+    make_results(tmp_path / "later" / "root", old)
+    pooled = list(csv.DictReader(open(old / "runs.csv")))
+    assert len(pooled) == 8 and {r["code"] for r in pooled} == {""}
+    assert {r["seed"] for r in pooled} == {"0", "1"}

@@ -9,8 +9,9 @@ import pytest
 
 import physrover
 from physrover import provenance
+from physrover.compiled import source_digest
 from physrover.config import RunConfig
-from physrover.provenance import PACKAGE_DIR, code_fingerprint, fingerprint, read_provenance
+from physrover.provenance import PACKAGE_DIR, code_fingerprint, read_provenance
 from physrover.runs import train
 
 EASY = dict(n_rovers=3, n_req=1, population=20, steps=50, method="D", checkpoint_every=3)
@@ -19,13 +20,17 @@ EASY = dict(n_rovers=3, n_req=1, population=20, steps=50, method="D", checkpoint
 def test_fingerprint_is_the_sources_not_the_place(tmp_path):
     copy = tmp_path / "copy" / "physrover"
     shutil.copytree(PACKAGE_DIR, copy, ignore=shutil.ignore_patterns("__pycache__"))
-    assert fingerprint(copy) == code_fingerprint()
+    assert source_digest(copy) == code_fingerprint()
     (copy / "compiled.py").write_text((copy / "compiled.py").read_text() + "\n# edited\n")
-    assert fingerprint(copy) != code_fingerprint()
+    assert source_digest(copy) != code_fingerprint()
     (copy / "compiled.py").write_text((PACKAGE_DIR / "compiled.py").read_text())
-    assert fingerprint(copy) == code_fingerprint()
+    assert source_digest(copy) == code_fingerprint()
+    (copy / ".#lock.py").symlink_to(copy / "gone")  # an editor's dangling lock: skipped
+    (copy / "notes.txt").write_text("not a source")
+    assert source_digest(copy) == code_fingerprint()
     (copy / "compiled.py").rename(copy / "compiled2.py")  # same bytes, other file: other code
-    assert fingerprint(copy) != code_fingerprint()
+    assert source_digest(copy) != code_fingerprint()
+    assert source_digest(tmp_path / "copy" / "empty") == ""  # no sources: no fingerprint
 
 
 def test_a_run_records_a_segment_per_start_and_resume(tmp_path):
@@ -55,15 +60,42 @@ def test_resuming_with_other_code_warns_and_is_recorded(tmp_path):
     assert [s["code"] for s in read_provenance(out)] == ["0" * 64, code_fingerprint()]
 
 
-def test_a_restart_before_any_checkpoint_replaces_its_segment(tmp_path, monkeypatch):
-    """Two segments from one generation: the first left nothing past it, only the second
-    stays (a run that crashed before its first checkpoint restarts from generation 0)."""
+def test_resuming_on_another_cpu_warns(tmp_path):
+    config = RunConfig().with_overrides(EASY)
+    out = train(config, tmp_path / "run", generations=4, progress=False)
+    data = json.loads((out / "provenance.json").read_text())
+    data["segments"][0].update(llvm_cpu="a-cpu-of-the-future")
+    (out / "provenance.json").write_text(json.dumps(data))
+    with pytest.warns(RuntimeWarning, match="compiled for another CPU .*a-cpu-of-the-future"):
+        train(None, out, resume=True, generations=5, progress=False)
+
+
+def test_a_finished_run_resumed_records_nothing(tmp_path):
+    out = train(RunConfig().with_overrides(EASY), tmp_path / "run", generations=3,
+                progress=False)  # fmt: skip
+    train(None, out, resume=True, progress=False)  # already at its 3 generations
+    assert [s["from_generation"] for s in read_provenance(out)] == [0]
+
+
+def test_segments_a_resume_goes_back_past_are_dropped(tmp_path, monkeypatch):
+    """Segments from 0, 5 and 8; a resume from generation 5 (the run's state put back to
+    its checkpoint at 5, say) keeps the one from 0 and replaces the others with its own.
+    Two segments from one generation: the first left nothing past it (a run that crashed
+    before its first checkpoint restarts from generation 0), only the second stays."""
     out = tmp_path / "run"
     out.mkdir()
-    provenance.record_segment(out, 0)
+    for start in (0, 5, 8):
+        provenance.record_segment(out, start)
+    assert [s["from_generation"] for s in read_provenance(out)] == [0, 5, 8]
+    provenance.record_segment(out, 5)
+    assert [s["from_generation"] for s in read_provenance(out)] == [0, 5]
     monkeypatch.setattr(provenance, "code_fingerprint", lambda: "f" * 64)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no warning: the replaced segment trained nothing
         provenance.record_segment(out, 0)
     assert [s["code"] for s in read_provenance(out)] == ["f" * 64]
+    monkeypatch.setattr(provenance, "code_fingerprint", lambda: None)  # sources unknown
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # unknown code is not compared
+        provenance.record_segment(out, 3)
     assert read_provenance(tmp_path) == []  # not a run: no segments
