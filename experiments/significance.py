@@ -5,8 +5,10 @@
 Reads each run's final score (mean eval G of its last 50 generations) from ``runs.csv`` and
 writes ``significance.csv`` and ``significance.md`` beside it: for every comparison of two
 cells, the means, the difference, the exact two-sided permutation p-value (every split of
-the seeds; no normality assumed), Welch's t and its degrees of freedom, Hedges' g, and the
-fraction of seeds that learn at all (final score above 0.5) in each cell.
+the seeds; no normality assumed), that p-value adjusted by Holm's method within its family
+(the comparisons one claim makes in one sweep, their number m beside it), Welch's t and its
+degrees of freedom, Hedges' g, and the fraction of seeds that learn at all (final score
+above 0.5) in each cell.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.stats import hedges_g, learned_fraction, permutation_test, welch_t
+from physrover.stats import hedges_g, holm, learned_fraction, permutation_test, welch_t
 
 # (claim, sweep, cell A, cell B); a cell is (method, n_req, n_rovers), or (sweep, method,
 # n_req, n_rovers) for a cell of another sweep; a method run as a variant (runs.csv's
@@ -166,7 +168,26 @@ def compare(cells: dict) -> list[dict]:
                 "learn_B": learned_fraction(y),
             }
         )
-    return rows
+    families = defaultdict(list)  # a claim's comparisons in one sweep: one family
+    for row in rows:
+        families[row["claim"], row["sweep"]].append(row)
+    for family in families.values():
+        adjusted = holm([row["p_permutation"] for row in family])
+        for row, p in zip(family, adjusted, strict=True):
+            row["p_holm"] = float(p)
+            row["family_size"] = len(family)
+    return [_after(row, "p_permutation", ("p_holm", "family_size")) for row in rows]
+
+
+def _after(row: dict, key: str, moved: tuple[str, ...]) -> dict:
+    """``row`` with the ``moved`` keys placed right after ``key`` (the CSV's column order)."""
+    out = {}
+    for k, v in row.items():
+        if k not in moved:
+            out[k] = v
+        if k == key:
+            out.update((m, row[m]) for m in moved)
+    return out
 
 
 def _fmt(v) -> str:
@@ -181,15 +202,16 @@ def write(rows: list[dict], out: Path) -> None:
         writer.writeheader()
         writer.writerows({k: _fmt(v) for k, v in r.items()} for r in rows)
     lines = [
-        "| claim | sweep | A | B | n | mean A | mean B | p (perm.) | Welch t (df) | Hedges' g"
-        " | learn A | learn B |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| claim | sweep | A | B | n | mean A | mean B | p (perm.) | p (Holm, m) | Welch t (df)"
+        " | Hedges' g | learn A | learn B |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         welch = "n/a" if np.isnan(r["welch_t"]) else f"{r['welch_t']:.2f} ({r['welch_df']:.1f})"
         lines.append(
             f"| {r['claim']} | {r['sweep']} | {r['A']} | {r['B']} | {r['n']} | "
-            f"{r['mean_A']:.2f} | {r['mean_B']:.2f} | {_fmt(r['p_permutation'])} | {welch} | "
+            f"{r['mean_A']:.2f} | {r['mean_B']:.2f} | {_fmt(r['p_permutation'])} | "
+            f"{_fmt(r['p_holm'])} ({r['family_size']}) | {welch} | "
             f"{_fmt(r['hedges_g'])} | {r['learn_A']:.0%} | {r['learn_B']:.0%} |"
         )
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")

@@ -1,4 +1,6 @@
-"""Confidence intervals over seeds (or episodes): Student-t 95% intervals of a mean."""
+"""Statistics over seeds (or episodes): Student-t 95% intervals of a mean, the tests of
+significance of the results (permutation test, Welch's t, Hedges' g) and Holm's adjustment
+for a family of them."""
 
 from __future__ import annotations
 
@@ -89,3 +91,16 @@ def hedges_g(a, b) -> float:
 def learned_fraction(final_scores, threshold: float = 0.5) -> float:
     """The fraction of runs whose final score is above ``threshold`` (a run "learns")."""
     return float(np.mean(np.asarray(final_scores, dtype=float) > threshold))
+
+
+def holm(p_values) -> np.ndarray:
+    """Holm's step-down adjustment of a family of p-values (Holm 1979): with the m values
+    sorted ascending, the i-th (from 0) becomes ``min(1, max_{j <= i} (m - j) p_(j))``,
+    returned in the input's order. Rejecting where the adjusted value is below alpha keeps
+    the family-wise error rate at alpha for any dependence between the tests."""
+    p = np.asarray(p_values, dtype=float)
+    order = np.argsort(p, kind="stable")
+    scaled = (len(p) - np.arange(len(p))) * p[order]
+    adjusted = np.empty_like(p)
+    adjusted[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    return adjusted

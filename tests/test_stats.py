@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from physrover.stats import hedges_g, learned_fraction, mean_ci, permutation_test, welch_t
+from physrover.stats import hedges_g, holm, learned_fraction, mean_ci, permutation_test, welch_t
 
 
 def test_mean_ci_hand_worked():
@@ -50,3 +50,12 @@ def test_welch_and_hedges_by_hand():
 
 def test_learned_fraction():
     assert learned_fraction([0.0, 0.4, 0.6, 7.0]) == 0.5
+
+
+def test_holm_by_hand():
+    # sorted 0.005, 0.01, 0.03, 0.04 -> x4, x3, x2, x1 = 0.02, 0.03, 0.06, 0.04 -> running
+    # maximum 0.02, 0.03, 0.06, 0.06, back in the input's order
+    np.testing.assert_allclose(holm([0.01, 0.04, 0.03, 0.005]), [0.03, 0.06, 0.06, 0.02])
+    np.testing.assert_allclose(holm([0.5, 0.6]), [1.0, 1.0])  # capped at 1
+    np.testing.assert_allclose(holm([0.0079]), [0.0079])  # a family of one: unchanged
+    assert holm([]).shape == (0,)
