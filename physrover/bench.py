@@ -57,7 +57,9 @@ def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> T
 
 
 def bench_train(config, methods, generations: int = 10) -> list[str]:
-    """Median ms per generation for each method, with the mean breakdown by phase."""
+    """Median ms per generation for each method, with the fastest and slowest (how steady
+    the machine is: compare medians only when they differ by more than the spread) and the
+    mean time per phase (means: they add up to the mean generation, not to the median)."""
     from physrover.learn.ccea import CCEA
 
     lines = []
@@ -75,7 +77,10 @@ def bench_train(config, methods, generations: int = 10) -> list[str]:
             f"{name} {1000.0 * (ccea.timings[name] - before[name]) / generations:.1f}"
             for name in ccea.timings
         )
-        lines.append(f"{method:20s} median {statistics.median(runs):6.1f} ms/generation ({parts})")
+        lines.append(
+            f"{method:20s} median {statistics.median(runs):6.1f} ms/generation (min "
+            f"{min(runs):.1f}, max {max(runs):.1f}; mean per phase: {parts})"
+        )
     return lines
 
 

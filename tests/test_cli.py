@@ -271,3 +271,24 @@ def test_output_into_a_closed_pipe_ends_quietly(tmp_path):
         os.close(write)
     assert done.returncode == 141, done.stderr
     assert "Traceback" not in done.stderr and "BrokenPipe" not in done.stderr
+
+
+def test_bench_train_reports_median_spread_and_phases():
+    """The line a method gets: its median between the fastest and slowest generation, and
+    the mean time of each phase (a format check; no timing is asserted)."""
+    import re
+
+    from physrover.bench import bench_train
+    from physrover.config import RunConfig
+
+    config = RunConfig().with_overrides(dict(n_rovers=3, n_req=1, population=10, steps=10))
+    (line,) = bench_train(config, ["max-critic"], generations=3)
+    found = re.fullmatch(
+        r"max-critic +median +([\d.]+) ms/generation \(min ([\d.]+), max ([\d.]+); "
+        r"mean per phase: (.*)\)",
+        line,
+    )
+    assert found, line
+    median, low, high = map(float, found.groups()[:3])
+    assert low <= median <= high
+    assert {part.split()[0] for part in found.group(4).split(", ")} >= {"rollout", "critic"}
