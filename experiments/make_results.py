@@ -299,11 +299,10 @@ def main() -> None:
     if (OUT / "runs.csv").exists():
         with open(OUT / "runs.csv", newline="") as f:
             previous_rows = list(csv.DictReader(f))
-        for row in previous_rows:  # written before runs.csv had the feedback / variant columns
+        for row in previous_rows:  # written before runs.csv had these columns
             row.setdefault("feedback", "D")
             row.setdefault("variant", "")
-        for row in previous_rows:  # written before runs recorded their provenance
-            row.setdefault("code", "")
+            row.setdefault("code", "")  # (and before runs recorded their provenance)
             row.setdefault("cpu", "")
     summary_rows = []
     cell_sections: dict[str, list[str]] = {}  # sweep -> its lines of cells.md

@@ -161,6 +161,8 @@ def compare(cells: dict) -> list[dict]:
                 "mean_B": np.mean(y),
                 "diff": np.mean(x) - np.mean(y),
                 "p_permutation": permutation_test(x, y),
+                "p_holm": np.nan,  # adjusted below, once the claim's family is known
+                "family_size": 0,
                 "welch_t": t,
                 "welch_df": df,
                 "hedges_g": hedges_g(x, y),
@@ -176,18 +178,7 @@ def compare(cells: dict) -> list[dict]:
         for row, p in zip(family, adjusted, strict=True):
             row["p_holm"] = float(p)
             row["family_size"] = len(family)
-    return [_after(row, "p_permutation", ("p_holm", "family_size")) for row in rows]
-
-
-def _after(row: dict, key: str, moved: tuple[str, ...]) -> dict:
-    """``row`` with the ``moved`` keys placed right after ``key`` (the CSV's column order)."""
-    out = {}
-    for k, v in row.items():
-        if k not in moved:
-            out[k] = v
-        if k == key:
-            out.update((m, row[m]) for m in moved)
-    return out
+    return rows
 
 
 def _fmt(v) -> str:

@@ -19,7 +19,8 @@ package is imported from (with ``+dirty`` for uncommitted changes to tracked fil
 null. Both are taken once per process, when its first run starts. ``llvm_cpu`` and
 ``cpu_features`` (a digest of the features numba compiles for) say what the kernels were
 compiled for. A resume with other code, or for another ``llvm_cpu`` or ``cpu_features``,
-than the last segment's warns (:func:`record_segment`).
+than the last segment's warns (:func:`with_segment`; :func:`physrover.runs.record_provenance`
+writes the file).
 """
 
 from __future__ import annotations
@@ -120,7 +121,7 @@ def describe(from_generation: int) -> dict:
 
 
 def _warn(message: str) -> None:
-    warnings.warn(message, RuntimeWarning, stacklevel=3)
+    warnings.warn(message, RuntimeWarning, stacklevel=4)  # the train call behind the resume
 
 
 def read_provenance(run_dir: Path) -> list[dict]:
@@ -132,14 +133,14 @@ def read_provenance(run_dir: Path) -> list[dict]:
     return list(json.loads(path.read_text())["segments"])
 
 
-def record_segment(run_dir: Path, from_generation: int) -> dict:
-    """Append this process's segment to ``run_dir/provenance.json`` and return it; warn if
+def with_segment(run_dir: Path, from_generation: int) -> list[dict]:
+    """The segments ``provenance.json`` should hold once this process trains ``run_dir``
+    from ``from_generation``: the recorded ones before it, then this process's; warns if
     the run was trained so far with other code than this, or with kernels compiled for
     another CPU (by the last segment's ``code``, ``llvm_cpu`` and ``cpu_features``; an
-    unknown code, None, is not compared).
-    Earlier segments from ``from_generation`` on are dropped: they left no checkpoint
-    past it (a start or resume that stopped before its first checkpoint)."""
-    run_dir = Path(run_dir)
+    unknown code, None, is not compared). Earlier segments from ``from_generation`` on are
+    dropped: they left no checkpoint past it (a start or resume that stopped before its
+    first checkpoint)."""
     segments = [s for s in read_provenance(run_dir) if s["from_generation"] < from_generation]
     segment = describe(from_generation)
     if segments:
@@ -161,8 +162,4 @@ def record_segment(run_dir: Path, from_generation: int) -> dict:
                 f"{segment['llvm_cpu']}): the critics' sums may round differently, so the "
                 "run may not be bit-identical to an uninterrupted one"
             )
-    segments.append(segment)
-    tmp = run_dir / (PROVENANCE + ".tmp")
-    tmp.write_text(json.dumps({"segments": segments}, indent=1) + "\n")
-    tmp.replace(run_dir / PROVENANCE)
-    return segment
+    return [*segments, segment]

@@ -31,7 +31,7 @@ import numpy as np
 from physrover.config import ConfigError, RunConfig
 from physrover.learn.ccea import CCEA, GenerationStats, stats_header
 from physrover.progress import Progress
-from physrover.provenance import record_segment
+from physrover.provenance import PROVENANCE, with_segment
 
 CONFIG, METRICS, STATE_NPZ, STATE_JSON, CHAMPIONS = (
     "config.toml",
@@ -94,6 +94,17 @@ def save_state(run_dir: Path, ccea: CCEA) -> None:
             np.save(f, ccea.champion_genomes())
 
     _atomic_write(champions / f"gen_{ccea.generation:06d}.npy", write_champions)
+
+
+def record_provenance(run_dir: Path, done: int, total: int) -> None:
+    """Append this process's segment to ``run_dir``'s provenance.json
+    (:func:`physrover.provenance.with_segment`, which warns of other code or another CPU)
+    as it trains from generation ``done`` to ``total``; none when ``done >= total`` (a
+    finished run resumed trains nothing)."""
+    if done < total:
+        segments = with_segment(run_dir, done)
+        text = json.dumps({"segments": segments}, indent=1) + "\n"
+        _atomic_write(run_dir / PROVENANCE, lambda p: p.write_text(text))
 
 
 def drop_state(run_dir: Path) -> int:
@@ -274,8 +285,7 @@ def train(
         _write_metrics(out / METRICS, rows)
     elif resume:
         _write_metrics(out / METRICS, [])  # started but never checkpointed: start over
-    if ccea.generation < total:  # a finished run resumed trains nothing: no segment
-        record_segment(out, ccea.generation)
+    record_provenance(out, ccea.generation, total)
 
     latest: list[GenerationStats] = []
 

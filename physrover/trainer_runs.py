@@ -19,7 +19,6 @@ from pathlib import Path
 from physrover.config import RunConfig
 from physrover.learn.ccea import stats_header
 from physrover.progress import Progress
-from physrover.provenance import record_segment
 from physrover.registry import TRAINERS
 from physrover.runs import (
     METRICS,
@@ -30,6 +29,7 @@ from physrover.runs import (
     load_state,
     prepare_run_dir,
     read_metrics,
+    record_provenance,
     write_rows,
 )
 
@@ -73,8 +73,7 @@ def train_trainer(
         rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= trainer.iterations]
     if resume:
         _write_metrics(out / METRICS, rows, metrics_header())
-    if trainer.iterations < trainer.total_iterations:  # a finished run trains nothing
-        record_segment(out, trainer.iterations)
+    record_provenance(out, trainer.iterations, trainer.total_iterations)
     log = TensorBoardLog(out) if tensorboard else None
     total = trainer.total_iterations
     label = f"{config.learn.method} iteration"

@@ -12,7 +12,7 @@ from physrover import provenance
 from physrover.compiled import source_digest
 from physrover.config import RunConfig
 from physrover.provenance import PACKAGE_DIR, code_fingerprint, read_provenance
-from physrover.runs import train
+from physrover.runs import record_provenance, train
 
 EASY = dict(n_rovers=3, n_req=1, population=20, steps=50, method="D", checkpoint_every=3)
 
@@ -85,17 +85,17 @@ def test_segments_a_resume_goes_back_past_are_dropped(tmp_path, monkeypatch):
     out = tmp_path / "run"
     out.mkdir()
     for start in (0, 5, 8):
-        provenance.record_segment(out, start)
+        record_provenance(out, start, 100)
     assert [s["from_generation"] for s in read_provenance(out)] == [0, 5, 8]
-    provenance.record_segment(out, 5)
+    record_provenance(out, 5, 100)
     assert [s["from_generation"] for s in read_provenance(out)] == [0, 5]
     monkeypatch.setattr(provenance, "code_fingerprint", lambda: "f" * 64)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no warning: the replaced segment trained nothing
-        provenance.record_segment(out, 0)
+        record_provenance(out, 0, 100)
     assert [s["code"] for s in read_provenance(out)] == ["f" * 64]
     monkeypatch.setattr(provenance, "code_fingerprint", lambda: None)  # sources unknown
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # unknown code is not compared
-        provenance.record_segment(out, 3)
+        record_provenance(out, 3, 100)
     assert read_provenance(tmp_path) == []  # not a run: no segments
