@@ -2,7 +2,7 @@
 
 import pytest
 
-from physrover.config import ConfigError, DomainConfig, parse_override
+from physrover.config import ConfigError, DomainConfig, dumps_toml, loads_toml, parse_override
 
 INVALID = [
     ({"n_rovers": 0}, "n_rovers"),
@@ -71,6 +71,19 @@ def test_toml_round_trip():
     text = cfg.to_toml()
     assert text.startswith("[domain]\n")
     assert DomainConfig.from_toml(text) == cfg
+
+
+def test_toml_layout_and_escaping():
+    """The text a run directory's config.toml holds: scalars and inline lists, one table after
+    another; strings with quotes, backslashes or newlines, keys that need quoting and
+    non-finite floats read back as written."""
+    tables = {"domain": {"n_req": 3, "d_cap": 5e-06, "poi_values": [1.0, 2.5], "on": True},
+              "odd": {"s": 'a "q" \\ b\nc\t', "key with space": float("inf")}}  # fmt: skip
+    text = dumps_toml(tables)
+    assert text.startswith(
+        "[domain]\nn_req = 3\nd_cap = 5e-06\npoi_values = [1.0, 2.5]\non = true\n\n[odd]\n"
+    )
+    assert loads_toml(text) == tables
 
 
 def test_toml_unknown_key_and_table():

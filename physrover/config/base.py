@@ -17,6 +17,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
+import tomlkit
+
 from physrover.registry import did_you_mean
 
 if sys.version_info >= (3, 11):
@@ -196,27 +198,15 @@ def load_toml_file(path: str | Path) -> dict[str, Any]:
     return loads_toml(text, str(path))
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        return repr(value)
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {value!r} as TOML")
-
-
 def dumps_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
-    """Write tables of scalars and flat lists as TOML (enough for every physrover config)."""
-    lines: list[str] = []
-    for name, table in tables.items():
-        if lines:
-            lines.append("")
-        lines.append(f"[{name}]")
-        lines.extend(f"{key} = {_toml_value(value)}" for key, value in table.items())
-    return "\n".join(lines) + "\n"
+    """Write ``{table: {key: value}}`` as TOML, one ``[table]`` after another.
+
+    Written by tomlkit: strings escaped (quotes, backslashes, newlines, control characters),
+    keys quoted where TOML needs it, ``inf``/``nan`` for non-finite floats, lists inline
+    (``poi_values = [1.0, 2.0]``). For every config physrover ships the text is byte for byte
+    what physrover 0.4's own writer gave, so run directories' config.toml read the same.
+    """
+    return tomlkit.dumps(tables)
 
 
 def parse_override(text: str) -> tuple[str, Any]:
