@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import comparable_rows
+from conftest import assert_same_run, comparable_rows
 
 from physrover.cli import main
 from physrover.config import ConfigError, RunConfig
@@ -104,13 +104,7 @@ def test_resume_is_bit_identical(tmp_path, method):
     full = train(config, tmp_path / "full", generations=8, progress=False)
     part = train(config, tmp_path / "part", generations=5, progress=False)
     train(None, part, resume=True, generations=8, progress=False)
-    assert comparable_rows(read_metrics(full / "metrics.csv")) == comparable_rows(
-        read_metrics(part / "metrics.csv")
-    )
-    a, b = np.load(full / "state.npz"), np.load(part / "state.npz")
-    assert set(a.files) == set(b.files)
-    for key in a.files:
-        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    assert_same_run(full, part)
     assert len(read_metrics(full / "metrics.csv")) == 8
 
 

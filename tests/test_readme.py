@@ -14,7 +14,9 @@ def _python_block(after: str) -> str:
     return re.search(r"```python\n(.*?)```", README[start:], re.S).group(1)
 
 
-@pytest.mark.parametrize("heading", ["## Extending physrover", "## Python API"])
+@pytest.mark.parametrize(
+    "heading", ["## Extending physrover", "### A learning algorithm of your own", "## Python API"]
+)
 def test_readme_example_runs(heading, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace: dict = {}
@@ -24,3 +26,11 @@ def test_readme_example_runs(heading, tmp_path, monkeypatch):
         assert len(metrics) == 1 + 20
         config = (tmp_path / "runs" / "extending" / "config.toml").read_text()
         assert '[scenario]\nkind = "line"' in config and 'kind = "poi-distances"' in config
+    if heading == "### A learning algorithm of your own":
+        run = tmp_path / "runs" / "random-search"
+        metrics = (run / "metrics.csv").read_text().splitlines()
+        assert len(metrics) == 1 + 20 and metrics[-1].split(",")[-2:] == ["200", "10000"]
+        assert "[random-search]\nnum_envs = 10\ntotal_episodes = 200\n" in (
+            (run / "config.toml").read_text()
+        )
+        assert "sigma = 0.2" in (run / "config.toml").read_text()

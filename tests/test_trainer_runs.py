@@ -1,8 +1,7 @@
 """Gradient-based trainers through the run directory: `physrover train --method mappo|maddpg`."""
 
-import numpy as np
 import pytest
-from conftest import comparable_rows
+from conftest import assert_same_run
 
 from physrover.cli import main
 from physrover.config import ConfigError, RunConfig
@@ -64,13 +63,7 @@ def test_a_crashed_run_resumes_bit_identically(method, tmp_path, monkeypatch):
     assert main(["train", "--method", method, *TINY, *extra, "--out", str(crashed)]) == 130
     monkeypatch.setattr(Trainer, "iteration", real)
     assert main(["train", "--resume", str(crashed), "--quiet"]) == 0
-    assert comparable_rows(read_metrics(crashed / "metrics.csv")) == comparable_rows(
-        read_metrics(full / "metrics.csv")
-    )
-    a, b = np.load(full / "state.npz"), np.load(crashed / "state.npz")
-    assert set(a.files) == set(b.files)
-    for key in a.files:
-        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    assert_same_run(full, crashed)
 
 
 def test_trainer_tables_in_the_config():

@@ -13,7 +13,7 @@ import dataclasses
 import math
 from typing import ClassVar
 
-from physrover.config import ConfigBase, check, check_choice
+from physrover.config import COMPONENTS, ConfigBase, check, check_choice
 from physrover.registry import TRAINERS
 
 REWARDS = ("G", "D")
@@ -188,27 +188,56 @@ class MADDPGConfig(MARLConfig):
 
 @dataclasses.dataclass(frozen=True)
 class TrainerSpec:
-    """A registered gradient-based trainer: its config table and where its class lives."""
+    """A registered gradient-based trainer: its config table and its class."""
 
     config: type
     """The config class (a :class:`MARLConfig`); its ``section`` names the TOML table."""
-    trainer: str
-    """``module:Class`` of the trainer, imported only when a run uses it (torch)."""
+    trainer: str | type
+    """The trainer class (a :class:`physrover.marl.common.Trainer`), or ``"module:Class"``,
+    imported only when a run uses it (the built-in trainers import torch)."""
     summary: str
     reference: str
 
-    def load(self):
+    def load(self) -> type:
+        if isinstance(self.trainer, type):
+            return self.trainer
         import importlib
 
         module, name = self.trainer.split(":")
         return getattr(importlib.import_module(module), name)
 
 
-TRAINERS.register("mappo", TrainerSpec(
-    MAPPOConfig, "physrover.marl.mappo:MAPPO",
+#: Tables of a run's config.toml that a trainer's section must not take.
+RESERVED_SECTIONS = ("domain", *COMPONENTS, "learn", MARLConfig.section)
+
+
+def register_trainer(
+    name: str, config: type, trainer: str | type, summary: str, reference: str = ""
+) -> TrainerSpec:
+    """Add a learning algorithm under ``name`` (``[learn] method = "NAME"``, ``--method``).
+
+    ``config``: a :class:`MARLConfig` subclass whose ``section`` (its TOML table, e.g.
+    ``[mappo]``) no other table of a run uses; ``trainer``: a
+    :class:`physrover.marl.common.Trainer` subclass or ``"module:Class"``. The run directory,
+    checkpoints, bit-identical resume, ``curves --x episodes``, ``render`` and ``evaluate``
+    come with it (:mod:`physrover.trainer_runs`).
+    """
+    if not (isinstance(config, type) and issubclass(config, MARLConfig)):
+        raise TypeError(f"a trainer's config must be a MARLConfig subclass, got {config!r}")
+    if not isinstance(trainer, (str, type)) or (isinstance(trainer, str) and ":" not in trainer):
+        raise TypeError(f"a trainer must be a class or 'module:Class', got {trainer!r}")
+    taken = {*RESERVED_SECTIONS, *(s.config.section for n, s in TRAINERS.items() if n != name)}
+    if config.section in taken:
+        raise ValueError(f"trainer {name!r}: its config's section [{config.section}] is taken; "
+                         "give its MARLConfig subclass its own `section`")  # fmt: skip
+    return TRAINERS.register(name, TrainerSpec(config, trainer, summary, reference))
+
+
+register_trainer(
+    "mappo", MAPPOConfig, "physrover.marl.mappo:MAPPO",
     "MAPPO: shared Gaussian actor, centralised value, GAE, clipped surrogate (IPPO: "
-    "centralised_critic = false)", "Yu et al. 2022"))  # fmt: skip
-TRAINERS.register("maddpg", TrainerSpec(
-    MADDPGConfig, "physrover.marl.maddpg:MADDPG",
+    "centralised_critic = false)", "Yu et al. 2022")  # fmt: skip
+register_trainer(
+    "maddpg", MADDPGConfig, "physrover.marl.maddpg:MADDPG",
     "MADDPG: deterministic actors, a centralised critic per rover, replay, soft targets",
-    "Lowe et al. 2017"))  # fmt: skip
+    "Lowe et al. 2017")  # fmt: skip
