@@ -12,6 +12,7 @@ import os
 import sys
 from collections.abc import Sequence
 
+from physrover import plugins
 from physrover.commands import (
     Interrupted,
     UsageError,
@@ -46,7 +47,7 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
 
 def _add_motion_args(p: argparse.ArgumentParser, default: str) -> None:
     p.add_argument(
-        "--motion", choices=["ideal", "physics"], help=f"motion model (default: {default})"
+        "--motion", help=f"motion model: ideal, physics or one registered (default: {default})"
     )
     p.add_argument(
         "--collisions",
@@ -62,6 +63,16 @@ def build_parser() -> argparse.ArgumentParser:
         description="Multi-rover testbed: the tightly coupled rover domain and fitness critics.",
         epilog="Start with `physrover demo`; `physrover COMMAND --help` describes a command.",
     )
+    parser.add_argument(
+        "--import",
+        dest="imports",
+        action="append",
+        default=[],
+        metavar="MODULE|FILE.py",
+        help="import a module or file of your own parts (scenario, sensor, motion model, "
+        "credit, fitness method, trainer) before the command; repeatable; sweep workers "
+        "inherit it (also: PHYSROVER_IMPORT, a sweep file's [sweep] imports)",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
 
     p = sub.add_parser("info", help="print the resolved run config (every table) as TOML")
@@ -74,7 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--method", help="fitness method, e.g. max-critic, D, average (list: physrover methods)"
     )
     p.add_argument("--n-req", dest="n_req", type=int, help="coupling n_req")
-    p.add_argument("--motion", choices=["ideal", "physics"], help="motion model")
+    p.add_argument("--motion", help="motion model: ideal, physics or one registered")
     p.add_argument("--generations", type=int, help="generations (with --resume: run up to)")
     p.add_argument("--seed", type=int, help="seed of every random draw")
     p.add_argument("--out", help="run directory (must not exist or be empty)")
@@ -194,6 +205,8 @@ def main(argv: Sequence[str] | None = None) -> int:
               "the one implementation (NUMBA_DISABLE_JIT=1 runs them as Python)",
               file=sys.stderr)  # fmt: skip
     try:
+        plugins.load_from_environment()
+        plugins.load(args.imports)
         code = args.func(args)
         sys.stdout.flush()  # inside the try: a closed pipe shows here, not at exit
         return code
@@ -203,7 +216,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # Python's final flush does not raise again.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
-    except (ConfigError, UsageError, RunError, VideoError) as exc:
+    except (ConfigError, UsageError, RunError, VideoError, plugins.PluginError) as exc:
         print(f"physrover: error: {exc}", file=sys.stderr)
         return 2
     except Interrupted as exc:

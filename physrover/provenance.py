@@ -9,7 +9,8 @@ see the same vector width. So every start and every resume appends a *segment*::
                    "code": "<sha256 of the package's sources>", "git": "<commit>" or null,
                    "python": ..., "numpy": ..., "numba": ..., "torch": ..., "pymunk": ...,
                    "cpu": "<model name>", "llvm_cpu": "znver4", "cpu_features": "<digest>",
-                   "machine": "x86_64", "started": "<UTC ISO time>"},
+                   "machine": "x86_64", "imports": {"<SPEC>": "<sha256 of its file>"},
+                   "started": "<UTC ISO time>"},
                   ...]}
 
 ``code`` (:func:`code_fingerprint`) identifies the installed package's sources exactly
@@ -18,7 +19,10 @@ a ``git archive``, which has no commit to ask; ``git`` is the commit of a checko
 package is imported from (with ``+dirty`` for uncommitted changes to tracked files), else
 null. Both are taken once per process, when its first run starts. ``llvm_cpu`` and
 ``cpu_features`` (a digest of the features numba compiles for) say what the kernels were
-compiled for. A resume with other code, or for another ``llvm_cpu`` or ``cpu_features``,
+compiled for. ``imports`` (only when there are any) lists the researcher's own modules
+loaded by ``--import``, ``PHYSROVER_IMPORT`` or a sweep's ``imports``
+(:mod:`physrover.plugins`), each with the digest of its file. A resume
+with other code, or for another ``llvm_cpu`` or ``cpu_features``,
 than the last segment's warns (:func:`with_segment`; :func:`physrover.runs.record_provenance`
 writes the file).
 """
@@ -35,6 +39,7 @@ import warnings
 from importlib import metadata
 from pathlib import Path
 
+from physrover import plugins
 from physrover.compiled import source_digest
 
 PROVENANCE = "provenance.json"
@@ -116,6 +121,7 @@ def describe(from_generation: int) -> dict:
         "llvm_cpu": _compile_target()[0],
         "cpu_features": _compile_target()[1],
         "machine": platform.machine(),
+        **({"imports": imports} if (imports := plugins.loaded()) else {}),
         "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
 

@@ -65,10 +65,13 @@ class Registry(Generic[T]):
         self.register(name, cls, replace=replace)
         return cls
 
-    def unknown_message(self, name: str) -> str:
+    def unknown_message(self, name: str, more: str = "") -> str:
+        """``unknown KIND 'NAME' (did you mean ...); known: a, b`` + ``more``, and where a
+        researcher's own part comes from (its module must be imported to register it)."""
         return (
             f"unknown {self.kind} {name!r}{did_you_mean(name, self.names())}; "
-            f"known: {', '.join(self.names())}"
+            f"known: {', '.join(self.names())}{more} (one of your own: its module registers "
+            "it when imported, e.g. physrover --import my_parts.py)"
         )
 
     def __getitem__(self, name: str) -> T:

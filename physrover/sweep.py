@@ -5,6 +5,7 @@ A sweep file (TOML) names a base config and a grid::
     [sweep]
     name = "fig4-7"          # runs go under ROOT/name/ (ROOT: --root, default runs/sweeps)
     seeds = 5                # seeds 0 .. seeds-1 for every cell (--seeds N or A:B overrides)
+    imports = ["my_parts.py"]  # optional: your own parts the grid names (physrover.plugins)
 
     [base.domain]            # the base RunConfig, as in a run's config.toml
     n_rovers = 15
@@ -46,6 +47,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from physrover import plugins
 from physrover.config import ConfigError, RunConfig, load_toml_file, naming_file
 from physrover.progress import Progress
 from physrover.runs import drop_state
@@ -68,6 +70,10 @@ class Sweep:
     grid: dict[str, list[Any]]
     seeds: int
     variants: tuple[dict[str, Any], ...] = ({},)
+    imports: tuple[str, ...] = ()
+    """[sweep] imports: modules or .py files (relative to the sweep file) of the researcher's
+    own parts that the runs name, imported when the file is loaded and by every worker
+    (:mod:`physrover.plugins`)."""
 
     @classmethod
     def load(cls, path: str | Path) -> Sweep:
@@ -84,9 +90,13 @@ class Sweep:
                 unknown[0], "unknown sweep table (known: sweep, base, grid, variants)"
             )
         meta = data.get("sweep", {})
-        bad = sorted(set(meta) - {"name", "seeds"})
+        bad = sorted(set(meta) - {"name", "seeds", "imports"})
         if bad:
-            raise ConfigError(bad[0], "unknown [sweep] key (known: name, seeds)")
+            raise ConfigError(bad[0], "unknown [sweep] key (known: name, seeds, imports)")
+        imports = meta.get("imports", [])
+        if not isinstance(imports, list) or not all(isinstance(i, str) for i in imports):
+            raise ConfigError("imports", "must be a list of module names or .py paths")
+        plugins.load(imports, base=Path(path).resolve().parent)  # before any name is checked
         base = RunConfig.from_dict(data.get("base", {}))
         grid = data.get("grid", {})
         for field, values in grid.items():
@@ -100,7 +110,7 @@ class Sweep:
         for variant in variants:
             base.with_overrides(variant)  # names and values must be valid
         name = str(meta.get("name", Path(path).stem))
-        return cls(name, base, grid, seeds, variants)
+        return cls(name, base, grid, seeds, variants, tuple(imports))
 
     def runs(
         self, root: str | Path, seeds: int | range | None = None, drop_state: bool = False
@@ -190,6 +200,7 @@ def run_one(spec: RunSpec) -> tuple[str, float, str | None]:
     start = time.perf_counter()
     try:
         pin_threads(1)
+        plugins.load_from_environment()  # a spawned or Ray worker: the parts the runs name
         from physrover.runs import train
 
         status = run_status(spec)
@@ -330,6 +341,8 @@ def _connect_ray(ray, address: str, workers: int, timeout: int = 30) -> None:
     if address != "local":
         _check_reachable(address)
     kwargs: dict[str, Any] = {"num_cpus": workers} if address == "local" else {}
+    if os.environ.get(plugins.ENV):  # the workers import the researcher's parts too
+        kwargs["runtime_env"] = {"env_vars": {plugins.ENV: os.environ[plugins.ENV]}}
     alarm = (
         address != "local"
         and hasattr(signal, "SIGALRM")

@@ -13,7 +13,7 @@ ROOT = Path(physrover.__file__).parent
 
 # Lowest first. A module may import from its own layer or below.
 LAYERS = [
-    {"registry", "compiled", "stats", "threads", "config", "progress", "provenance"},
+    {"registry", "compiled", "stats", "threads", "config", "progress", "provenance", "plugins"},
     {"domain"},  # the rover domain: state, kernels, physics, world
     {"render", "video"},  # frames and videos of the domain (the envs' render_mode)
     {"envs"},  # gymnasium envs over the world

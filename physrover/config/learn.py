@@ -98,8 +98,9 @@ class LearnConfig(ConfigBase):
             check(
                 self.method in FITNESS_METHODS,
                 "method",
-                FITNESS_METHODS.unknown_message(self.method) + f", or a trainer: "
-                f"{', '.join(TRAINERS)}",
+                FITNESS_METHODS.unknown_message(
+                    self.method, f", or a trainer: {', '.join(TRAINERS)}"
+                ),
             )
         check(self.feedback in CREDITS, "feedback", CREDITS.unknown_message(self.feedback))
         check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
