@@ -9,7 +9,8 @@ see the same vector width. So every start and every resume appends a *segment*::
                    "code": "<sha256 of the package's sources>", "git": "<commit>" or null,
                    "python": ..., "numpy": ..., "numba": ..., "torch": ..., "pymunk": ...,
                    "cpu": "<model name>", "llvm_cpu": "znver4", "cpu_features": "<digest>",
-                   "machine": "x86_64", "imports": {"<SPEC>": "<sha256 of its file>"},
+                   "machine": "x86_64",
+                   "imports": {"<SPEC>": {"file": "<path>", "sha256": "<digest>"}},
                    "started": "<UTC ISO time>"},
                   ...]}
 
@@ -21,7 +22,7 @@ null. Both are taken once per process, when its first run starts. ``llvm_cpu`` a
 ``cpu_features`` (a digest of the features numba compiles for) say what the kernels were
 compiled for. ``imports`` (only when there are any) lists the researcher's own modules
 loaded by ``--import``, ``PHYSROVER_IMPORT`` or a sweep's ``imports``
-(:mod:`physrover.plugins`), each with the digest of its file. A resume
+(:mod:`physrover.plugins`), each with its file and the digest of its source. A resume
 with other code, or for another ``llvm_cpu`` or ``cpu_features``,
 than the last segment's warns (:func:`with_segment`; :func:`physrover.runs.record_provenance`
 writes the file).
@@ -168,4 +169,12 @@ def with_segment(run_dir: Path, from_generation: int) -> list[dict]:
                 f"{segment['llvm_cpu']}): the critics' sums may round differently, so the "
                 "run may not be bit-identical to an uninterrupted one"
             )
+        for key, now in segment.get("imports", {}).items():
+            then = before.get("imports", {}).get(key)
+            if then is not None and then["sha256"] != now["sha256"]:
+                _warn(
+                    f"{run_dir}: resuming at generation {from_generation} with {key} changed "
+                    f"since {since} (sha256 {then['sha256']}, now {now['sha256']}): the run is "
+                    "bit-identical to an uninterrupted one only if its parts are the same"
+                )
     return [*segments, segment]

@@ -28,10 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
+from physrover import plugins
 from physrover.config import ConfigError, RunConfig
 from physrover.learn.ccea import CCEA, GenerationStats, stats_header
 from physrover.progress import Progress
-from physrover.provenance import PROVENANCE, with_segment
+from physrover.provenance import PROVENANCE, read_provenance, with_segment
 
 CONFIG, METRICS, STATE_NPZ, STATE_JSON, CHAMPIONS = (
     "config.toml",
@@ -201,7 +202,15 @@ def find_runs(paths: list[str | Path]) -> list[Path]:
 def load_run_config(run_dir: Path) -> RunConfig:
     if not (run_dir / CONFIG).is_file():
         raise RunError(f"{run_dir} is not a run directory (no {CONFIG})")
-    return RunConfig.load(run_dir / CONFIG)
+    try:
+        return RunConfig.load(run_dir / CONFIG)
+    except ConfigError as exc:
+        made_with = {k for s in read_provenance(run_dir) for k in s.get("imports", {})}
+        missing = sorted(made_with - set(plugins.loaded()))
+        if not missing:
+            raise
+        raise ConfigError(exc.field, f"{exc.message}; the run was made with "
+                          f"{' '.join('--import ' + m for m in missing)}") from None  # fmt: skip
 
 
 def champion_checkpoints(run_dir: Path) -> dict[int, Path]:

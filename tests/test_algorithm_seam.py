@@ -21,6 +21,7 @@ from physrover.evaluate import evaluate_run
 from physrover.learn.policies import PolicyLayout
 from physrover.marl.common import Trainer, run_episodes
 from physrover.marl.configs import MAPPOConfig, MARLConfig, register_trainer
+from physrover.plots import load_runs
 from physrover.runs import read_metrics
 
 
@@ -105,6 +106,7 @@ def test_a_registered_trainer_trains_through_the_run_directory(tmp_path, capsys)
     np.testing.assert_array_equal(champion, state["extra/genomes"])  # what render plays
     assert champion.shape == (3, PolicyLayout(4, 8).size)
     assert len(evaluate_run(out, episodes=3).G) == 3
+    assert load_runs([out])[0].episodes.tolist() == [4, 8, 12, 16, 20, 24]  # curves --x episodes
     capsys.readouterr()
     assert main(["methods"]) == 0
     assert "test-hill-climb" in capsys.readouterr().out
@@ -156,6 +158,8 @@ def test_register_trainer_refuses_what_a_run_could_not_hold():
         register_trainer("test-clash", dict, HillClimb, "")
     with pytest.raises(TypeError, match="module:Class"):
         register_trainer("test-clash", HillClimbConfig, "no_colon", "")
+    with pytest.raises(ValueError, match="'D' is a fitness method"):
+        register_trainer("D", HillClimbConfig, HillClimb, "")
     with pytest.raises(ValueError, match="already registered"):
         register_trainer("test-hill-climb", HillClimbConfig, HillClimb, "")
     with pytest.raises(ConfigError, match="sigma"):

@@ -2,9 +2,12 @@
 ``[sweep] imports`` and ``PHYSROVER_IMPORT`` (physrover.plugins)."""
 
 import json
+import multiprocessing
 import os
+import re
 import subprocess
 import sys
+from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
@@ -12,7 +15,8 @@ from physrover import plugins
 from physrover.cli import main
 from physrover.config import ConfigError, RunConfig
 from physrover.registry import CREDITS, SCENARIOS
-from physrover.sweep import Sweep
+from physrover.runs import train
+from physrover.sweep import RunSpec, Sweep, run_one
 
 # A scenario (the ring's rovers, POIs on a line) and a credit (G for every rover), in a file
 # of their own; NAME makes the registered names unique to each test that writes one.
@@ -58,10 +62,10 @@ TINY = ["--set", "n_rovers=3", "--set", "n_req=1", "--set", "population=4", "--s
 @pytest.fixture(autouse=True)
 def _own_environment(monkeypatch):
     """Each test starts with nothing loaded (so nothing exported) and leaves behind neither
-    PHYSROVER_IMPORT nor a changed PYTHONPATH or sys.path for the tests that follow."""
+    PHYSROVER_IMPORT nor a changed sys.path for the tests that follow."""
     monkeypatch.setenv(plugins.ENV, "")  # (delenv of an unset name would restore nothing)
-    monkeypatch.setenv("PYTHONPATH", os.environ.get("PYTHONPATH", ""))
     monkeypatch.setattr(plugins, "_loaded", {})
+    monkeypatch.setattr(plugins, "_failed", {})
     monkeypatch.setattr(sys, "path", list(sys.path))
 
 
@@ -69,6 +73,13 @@ def _parts(directory, name):
     path = directory / f"{name.replace('-', '_')}.py"
     path.write_text(PARTS.replace("NAME", name))
     return path
+
+
+def _physrover(*argv, cwd, env=None):
+    """``physrover ARGV`` in a fresh process (what a new shell or a spawned worker sees)."""
+    code = "import sys; from physrover.cli import main; sys.exit(main(sys.argv[1:]))"
+    return subprocess.run([sys.executable, "-c", code, *argv], cwd=cwd, capture_output=True,
+                          text=True, env={**os.environ, **(env or {})})  # fmt: skip
 
 
 def test_train_with_a_file_of_ones_own_parts(tmp_path, capsys):
@@ -81,36 +92,71 @@ def test_train_with_a_file_of_ones_own_parts(tmp_path, capsys):
     assert config.domain.scenario.kind == "plugin-a-line" and config.domain.scenario.spacing == 2.5
     assert config.learn.feedback == "plugin-a-G"
     (segment,) = json.loads((out / "provenance.json").read_text())["segments"]
-    assert len(segment["imports"][str(path.resolve())]) == 16  # which file, and its digest
+    recorded = segment["imports"][str(path.resolve())]  # which file, and its digest
+    assert recorded == {"file": str(path.resolve()), "sha256": recorded["sha256"]}
+    assert len(recorded["sha256"]) == 16
     # Loaded once per process: a second command with the same file registers nothing twice.
     assert main(["--import", str(path), "info", "--set", "scenario=plugin-a-line"]) == 0
     assert 'kind = "plugin-a-line"' in capsys.readouterr().out
-    assert str(path.resolve()) in os.environ[plugins.ENV].split(os.pathsep)  # for children
+    assert os.environ[plugins.ENV] == str(path.resolve())  # for child processes
+    # A new process without the file: the run's error says what it was made with.
+    result = _physrover(
+        "evaluate", str(out), "--episodes", "1", cwd=tmp_path, env={plugins.ENV: ""}
+    )
+    assert result.returncode == 2
+    assert re.search(r"unknown (scenario|credit signal) 'plugin-a-", result.stderr)
+    assert f"the run was made with --import {path.resolve()}" in result.stderr
+    result = _physrover("--import", "plugin_a.py", "evaluate", str(out), "--episodes", "1",
+                        cwd=tmp_path, env={plugins.ENV: ""})  # fmt: skip
+    assert result.returncode == 0, result.stderr
 
 
-def test_a_module_by_name_from_the_current_directory(tmp_path, monkeypatch, capsys):
-    _parts(tmp_path, "plugin-b")
+def test_a_module_by_name_from_the_current_directory_is_its_file(tmp_path, monkeypatch, capsys):
+    path = _parts(tmp_path, "plugin-b")
     monkeypatch.chdir(tmp_path)
     assert main(["--import", "plugin_b", "methods"]) == 0
     assert "plugin-b-line" in capsys.readouterr().out
     assert "plugin-b-line" in SCENARIOS and "plugin-b-G" in CREDITS
-    assert os.environ[plugins.ENV] == "plugin_b"  # by name, and where a child finds it:
-    assert str(tmp_path) in os.environ["PYTHONPATH"].split(os.pathsep)
+    assert os.environ[plugins.ENV] == str(path)  # any child finds it, whatever its directory
+    assert plugins.load(["./plugin_b.py", str(path)]) == 2 * plugins.load(["plugin_b"])  # one
 
 
-def test_what_cannot_be_imported_is_one_line_naming_it(tmp_path, capsys):
+def test_a_file_imported_by_name_first_is_not_loaded_again(tmp_path, monkeypatch):
+    path = _parts(tmp_path, "plugin-e")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import plugin_e  # noqa: F401  (as a script of the researcher's would)
+
+    assert plugins.load([str(path)]) == ["plugin_e"]  # not a second copy that re-registers
+
+
+def test_a_file_imports_its_siblings(tmp_path):
+    (tmp_path / "helpers_f.py").write_text("SPACING = 7.0\n")
+    path = tmp_path / "parts_f.py"
+    path.write_text("import helpers_f\n" + PARTS.replace("NAME", "plugin-f").replace(
+        "spacing: float = 3.0", "spacing: float = helpers_f.SPACING"))  # fmt: skip
+    plugins.load([str(path)])
+    assert SCENARIOS["plugin-f-line"]().spacing == 7.0
+
+
+def test_what_cannot_be_imported_is_one_line_naming_it(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
     assert main(["--import", "no_such_parts_module", "methods"]) == 2
     err = capsys.readouterr().err
-    assert "cannot import 'no_such_parts_module': no such module" in err and "./" in err
+    assert "cannot import 'no_such_parts_module': no installed module" in err
+    assert f"no_such_parts_module.py in {tmp_path}" in err
     assert main(["--import", str(tmp_path / "missing.py"), "methods"]) == 2
     assert "missing.py: no such file" in capsys.readouterr().err
-    broken = tmp_path / "broken_parts.py"
-    broken.write_text("raise RuntimeError('a bug in the parts')\n")
-    with pytest.raises(RuntimeError, match="a bug in the parts"):  # its own traceback
-        main(["--import", str(broken), "methods"])
     # The name of a part never imported says where parts come from.
     assert main(["info", "--set", "scenario=plugin-z-line"]) == 2
     assert "physrover --import" in capsys.readouterr().err
+
+
+def test_a_module_that_fails_half_way_fails_the_same_way_again(tmp_path):
+    broken = tmp_path / "broken_parts.py"
+    broken.write_text(PARTS.replace("NAME", "plugin-g") + "raise RuntimeError('a bug')\n")
+    for _ in range(2):  # not "already registered" the second time: the module's own error
+        with pytest.raises(RuntimeError, match="a bug"):
+            main(["--import", str(broken), "methods"])
 
 
 def test_a_sweep_names_its_parts_and_its_workers_import_them(tmp_path):
@@ -119,13 +165,14 @@ def test_a_sweep_names_its_parts_and_its_workers_import_them(tmp_path):
     _parts(parts_dir, "plugin-c")
     sweep_file = parts_dir / "lines.toml"
     sweep_file.write_text(
-        '[sweep]\nname = "lines"\nseeds = 1\nimports = ["plugin_c.py"]\n\n'
+        '[sweep]\nname = "lines"\nseeds = 1\nimports = ["plugin_c"]\n\n'
         "[base.domain]\nn_rovers = 3\nn_req = 1\nsteps = 10\n\n"
         '[base.scenario]\nkind = "plugin-c-line"\n\n'
         "[base.learn]\ngenerations = 2\npopulation = 4\neval_episodes = 2\n\n"
         "[grid]\nspacing = [2.0, 4.0]\n"
     )
-    assert Sweep.load(sweep_file).imports == ("plugin_c.py",)  # relative to the sweep file
+    # A bare name is looked up beside the sweep file, not only in the current directory.
+    assert Sweep.load(sweep_file).imports == ("plugin_c",)
     bad = tmp_path / "bad.toml"
     bad.write_text('[sweep]\nimports = "plugin_c.py"\n')
     with pytest.raises(ConfigError, match="imports: must be a list"):
@@ -138,12 +185,46 @@ def test_a_sweep_names_its_parts_and_its_workers_import_them(tmp_path):
         assert len((run / "metrics.csv").read_text().splitlines()) == 1 + 2
 
 
-def test_a_fresh_process_imports_what_the_environment_names(tmp_path):
-    """What a spawned pool worker or a Ray worker does first (sweep.run_one)."""
+def test_a_spawned_worker_imports_what_the_environment_names(tmp_path):
+    """A worker that inherits no registrations (the spawn start method, Python 3.14's
+    default forkserver, a Ray worker) trains a run that names the parts (sweep.run_one)."""
     path = _parts(tmp_path, "plugin-d")
-    code = ("from physrover import plugins, registry; plugins.load_from_environment(); "
-            "print('plugin-d-line' in registry.SCENARIOS)")  # fmt: skip
-    env = {**os.environ, plugins.ENV: os.pathsep.join(["", str(path)])}
-    result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                            text=True, check=True)  # fmt: skip
-    assert result.stdout.strip() == "True"
+    plugins.load([str(path)])  # the parent: exports PHYSROVER_IMPORT
+    config = RunConfig().with_overrides(
+        {
+            "scenario": "plugin-d-line",
+            "n_rovers": 3,
+            "n_req": 1,
+            "steps": 10,
+            "generations": 2,
+            "population": 4,
+            "eval_episodes": 2,
+        }  # fmt: skip
+    )
+    spec = RunSpec("d", config.to_toml(), str(tmp_path / "d"))
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        name, _seconds, error = pool.submit(run_one, spec).result()
+    assert error is None and name == "d"
+    assert len((tmp_path / "d" / "metrics.csv").read_text().splitlines()) == 1 + 2
+
+
+def test_resuming_with_a_changed_parts_file_warns(tmp_path):
+    path = _parts(tmp_path, "plugin-h")
+    plugins.load([str(path)])
+    config = RunConfig().with_overrides(
+        {
+            "scenario": "plugin-h-line",
+            "n_rovers": 3,
+            "n_req": 1,
+            "steps": 10,
+            "population": 4,
+            "eval_episodes": 2,
+            "checkpoint_every": 2,
+        }  # fmt: skip
+    )
+    out = train(config, tmp_path / "run", generations=2, progress=False)
+    data = json.loads((out / "provenance.json").read_text())
+    data["segments"][0]["imports"][str(path)]["sha256"] = "0" * 16  # as if edited since
+    (out / "provenance.json").write_text(json.dumps(data))
+    with pytest.warns(RuntimeWarning, match=r"plugin_h\.py changed since generation 0 on"):
+        train(None, out, resume=True, generations=4, progress=False)

@@ -206,7 +206,7 @@ def dumps_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
     (``poi_values = [1.0, 2.0]``). For every config physrover ships the text is byte for byte
     what physrover 0.4's own writer gave, so run directories' config.toml read the same.
     """
-    return tomlkit.dumps(tables)
+    return tomlkit.dumps({name: dict(table) for name, table in tables.items()})
 
 
 def parse_override(text: str) -> tuple[str, Any]:

@@ -75,7 +75,9 @@ class RunConfig:
         unknown = sorted(set(data) - {"domain", *COMPONENTS, "learn", *sections})
         if unknown:
             known = ", ".join(["domain", *COMPONENTS, "learn", *sections])
-            raise ConfigError(unknown[0], f"unknown TOML table (known: {known})")
+            raise ConfigError(unknown[0], f"unknown TOML table (known: {known}; a trainer of "
+                              "your own registers its table when its module is imported, e.g. "
+                              "physrover --import my_parts.py)")  # fmt: skip
         learn = LearnConfig.from_dict(data.get("learn", {}))
         trainer = None
         for section, name in sections.items():

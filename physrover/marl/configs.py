@@ -14,7 +14,7 @@ import math
 from typing import ClassVar
 
 from physrover.config import COMPONENTS, ConfigBase, check, check_choice
-from physrover.registry import TRAINERS
+from physrover.registry import FITNESS_METHODS, TRAINERS
 
 REWARDS = ("G", "D")
 """Credit signals a baseline trains on: "G" every rover gets the team's increase of G at each
@@ -226,6 +226,8 @@ def register_trainer(
         raise TypeError(f"a trainer's config must be a MARLConfig subclass, got {config!r}")
     if not isinstance(trainer, (str, type)) or (isinstance(trainer, str) and ":" not in trainer):
         raise TypeError(f"a trainer must be a class or 'module:Class', got {trainer!r}")
+    if name in FITNESS_METHODS:
+        raise ValueError(f"{name!r} is a fitness method of the CCEA; give the trainer its own name")
     taken = {*RESERVED_SECTIONS, *(s.config.section for n, s in TRAINERS.items() if n != name)}
     if config.section in taken:
         raise ValueError(f"trainer {name!r}: its config's section [{config.section}] is taken; "
