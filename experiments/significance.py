@@ -20,7 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.stats import hedges_g, holm, learned_fraction, permutation_test, welch_t
+from physrover.compare import (
+    compare_samples,
+    format_number,
+    holm_families,
+    markdown_header,
+    significance_cells,
+)
 
 # (claim, sweep, cell A, cell B); a cell is (method, n_req, n_rovers), or (sweep, method,
 # n_req, n_rovers) for a cell of another sweep; a method run as a variant (runs.csv's
@@ -149,7 +155,7 @@ def compare(cells: dict) -> list[dict]:
         x, y = cells.get((sweep, *a)), cells.get((sweep_b, *b))
         if not x or not y or min(len(x), len(y)) < MIN_SEEDS:  # e.g. a sweep still in chunks
             continue
-        t, df = welch_t(x, y)
+        r = compare_samples(x, y)
         rows.append(
             {
                 "claim": claim,
@@ -157,54 +163,26 @@ def compare(cells: dict) -> list[dict]:
                 "A": f"{a[0]} n_req={a[1]} rovers={a[2]}",
                 "B": f"{b[0]} n_req={b[1]} rovers={b[2]}",
                 "n": f"{len(x)}/{len(y)}",
-                "mean_A": np.mean(x),
-                "mean_B": np.mean(y),
-                "diff": np.mean(x) - np.mean(y),
-                "p_permutation": permutation_test(x, y),
+                **{k: r[k] for k in ("mean_A", "mean_B", "diff", "p_permutation")},
                 "p_holm": np.nan,  # adjusted below, once the claim's family is known
                 "family_size": 0,
-                "welch_t": t,
-                "welch_df": df,
-                "hedges_g": hedges_g(x, y),
-                "learn_A": learned_fraction(x),
-                "learn_B": learned_fraction(y),
+                **{k: r[k] for k in ("welch_t", "welch_df", "hedges_g", "learn_A", "learn_B")},
             }
         )
-    families = defaultdict(list)  # a claim's comparisons in one sweep: one family
-    for row in rows:
-        families[row["claim"], row["sweep"]].append(row)
-    for family in families.values():
-        adjusted = holm([row["p_permutation"] for row in family])
-        for row, p in zip(family, adjusted, strict=True):
-            row["p_holm"] = float(p)
-            row["family_size"] = len(family)
+    # A claim's comparisons in one sweep: one family.
+    holm_families(rows, lambda row: (row["claim"], row["sweep"]))
     return rows
-
-
-def _fmt(v) -> str:
-    if isinstance(v, float) or isinstance(v, np.floating):
-        return "n/a" if np.isnan(v) else f"{v:.3g}"
-    return str(v)
 
 
 def write(rows: list[dict], out: Path) -> None:
     with open(out.with_suffix(".csv"), "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
-        writer.writerows({k: _fmt(v) for k, v in r.items()} for r in rows)
-    lines = [
-        "| claim | sweep | A | B | n | mean A | mean B | p (perm.) | p (Holm, m) | Welch t (df)"
-        " | Hedges' g | learn A | learn B |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+        writer.writerows({k: format_number(v) for k, v in r.items()} for r in rows)
+    lines = [markdown_header("claim", "sweep", "A", "B", "n")]
     for r in rows:
-        welch = "n/a" if np.isnan(r["welch_t"]) else f"{r['welch_t']:.2f} ({r['welch_df']:.1f})"
-        lines.append(
-            f"| {r['claim']} | {r['sweep']} | {r['A']} | {r['B']} | {r['n']} | "
-            f"{r['mean_A']:.2f} | {r['mean_B']:.2f} | {_fmt(r['p_permutation'])} | "
-            f"{_fmt(r['p_holm'])} ({r['family_size']}) | {welch} | "
-            f"{_fmt(r['hedges_g'])} | {r['learn_A']:.0%} | {r['learn_B']:.0%} |"
-        )
+        lead = f"| {r['claim']} | {r['sweep']} | {r['A']} | {r['B']} | {r['n']} |"
+        lines.append(f"{lead} {significance_cells(r)} |")
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
 
 

@@ -24,6 +24,7 @@ from physrover.commands import (
     cmd_methods,
     cmd_render,
     cmd_sweep,
+    cmd_table,
     cmd_train,
 )
 from physrover.config import ConfigError
@@ -143,6 +144,30 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--title", default=None, help="plot title (default: what all runs share)")
     p.set_defaults(func=cmd_curves)
+
+    p = sub.add_parser(
+        "table",
+        help="final scores with 95%% CI and the fraction that learns; --compare: tests",
+        description="Each group's final score (mean eval G over its last N generations) "
+        "+- the Student-t 95%% half-width, range and fraction of runs that learn, as a "
+        "Markdown table; --compare FIELD=A,B also sets A against B in every cell of the other "
+        "fields (exact permutation p, Holm-adjusted over the comparisons, Welch's t, Hedges' g).",
+    )
+    p.add_argument("run_dirs", nargs="+", help="run directories, or directories holding them")
+    p.add_argument("--last", type=int, default=50, help="final score: mean of the last N "
+                   "generations (default 50)")  # fmt: skip
+    p.add_argument("--by", action="append", metavar="FIELD", help="also group by this field")
+    p.add_argument(
+        "--compare",
+        metavar="FIELD=A,B",
+        help="value A of FIELD against B, e.g. method=max-critic,D",
+    )
+    p.add_argument(
+        "--learned", type=float, default=0.5, help="a run learns above this score (default 0.5)"
+    )
+    p.add_argument("--out", metavar="PREFIX", help="also write PREFIX_cells.csv/.md "
+                   "(and PREFIX_compare.csv/.md)")  # fmt: skip
+    p.set_defaults(func=cmd_table)
 
     p = sub.add_parser("demo", help="short max-critic training, then a curve and a video")
     p.add_argument("--generations", type=int, default=2000, help="generations (default 2000)")

@@ -241,6 +241,36 @@ def cmd_curves(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_table(args: argparse.Namespace) -> int:
+    from physrover import compare
+    from physrover.curve_data import load_runs
+
+    run_dirs = find_runs(args.run_dirs)
+    if not run_dirs:
+        raise UsageError("no run directories (with config.toml) found")
+    if args.last < 1:
+        raise UsageError(f"--last must be >= 1, got {args.last}")
+    runs = load_runs(run_dirs, by=tuple(args.by or ()))
+    rows = compare.cells(runs, args.last, args.learned)
+    tables = [("cells", rows, compare.CELL_COLUMNS, compare.cells_markdown(rows, args.last))]
+    if args.compare:
+        field, a, b = compare.parse_compare(args.compare)
+        pairs, skipped = compare.comparisons(runs, field, a, b, args.last, args.learned)
+        for message in skipped:
+            print(message, file=sys.stderr)
+        markdown = compare.comparisons_markdown(pairs)
+        tables.append(("compare", pairs, compare.COMPARE_COLUMNS, markdown))
+    print("\n".join(markdown for *_, markdown in tables), end="")
+    if args.out:
+        for name, table_rows, columns, markdown in tables:
+            path = Path(f"{args.out}_{name}.csv")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            compare.write_csv(table_rows, columns, path)
+            path.with_suffix(".md").write_text(markdown)
+            print(f"{name}: {path} {path.with_suffix('.md')}", file=sys.stderr)
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from physrover import plots
     from physrover.playback import record_run

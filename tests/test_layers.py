@@ -19,7 +19,7 @@ LAYERS = [
     {"envs"},  # gymnasium envs over the world
     {"learn", "marl"},  # learners and MARL interfaces over the envs
     # run directories (the CCEA's and the gradient-based trainers') and what reads them
-    {"runs", "trainer_runs", "evaluate", "curve_data", "plots"},
+    {"runs", "trainer_runs", "evaluate", "curve_data", "plots", "compare"},
     {"playback", "sweep", "bench"},
     {"cli", "commands"},
 ]
