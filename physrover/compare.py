@@ -72,6 +72,16 @@ def holm_families(rows: list[dict], family) -> None:
             row["p_holm"], row["family_size"] = float(p), len(members)
 
 
+def length_messages(runs: list[Run]) -> list[str]:
+    """A message for each group whose runs differ in length (an unfinished run among them:
+    each run is scored on its own last generations)."""
+    lengths: dict[str, list[int]] = defaultdict(list)
+    for run in runs:
+        lengths[run.group].append(len(run.eval_G))
+    return [f"{group}: runs of {min(n)} to {max(n)} generations, each scored on its own end"
+            for group, n in lengths.items() if min(n) != max(n)]  # fmt: skip
+
+
 def cells(runs: list[Run], last: int, threshold: float = 0.5) -> list[dict]:
     """One row per group of ``runs`` (in their order of first appearance): see
     :data:`CELL_COLUMNS`."""
@@ -166,8 +176,10 @@ def cells_markdown(rows: list[dict], last: int) -> str:
     lines = [f"| group | n | final G (last {last}) +- 95% CI | range | learn |",
              "|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
-        lines.append(f"| {r['group']} | {r['n']} | {r['mean']:.2f} +- {r['ci95_half_width']:.2f}"
-                     f" | {r['min']:.2f}-{r['max']:.2f} | {r['learned']:.0%} |")  # fmt: skip
+        ci = r["ci95_half_width"]
+        ci = "n/a" if math.isnan(ci) else f"{ci:.2f}"
+        lines.append(f"| {r['group']} | {r['n']} | {r['mean']:.2f} +- {ci} | "
+                     f"{r['min']:.2f}-{r['max']:.2f} | {r['learned']:.0%} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 

@@ -94,6 +94,15 @@ def test_cells_without_two_runs_a_side_are_named_not_compared(tmp_path, capsys):
         captured.err
     )
     assert "| n_req=4 |" in captured.out and "| n_req=6 |" not in captured.out
+    assert "| D n_req=6 | 1 | 0.00 +- n/a | 0.00-0.00 | 0% |" in captured.out
+
+
+def test_a_group_of_runs_of_different_lengths_is_named(tmp_path, capsys):
+    root = _runs(tmp_path / "runs")
+    metrics = root / "D_4_2" / "metrics.csv"  # as if still running: 2 of its 3 generations
+    metrics.write_text("".join(metrics.read_text().splitlines(keepends=True)[:3]))
+    assert main(["table", str(root), "--last", "2"]) == 0
+    assert "D n_req=4: runs of 2 to 3 generations" in capsys.readouterr().err
 
 
 def test_bad_comparisons_are_one_line(tmp_path, capsys):
