@@ -21,7 +21,9 @@ import json
 import math
 import os
 import re
+import signal
 import tempfile
+import threading
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
@@ -309,6 +311,36 @@ def train(
     return out
 
 
+class StopRequests:
+    """``with StopRequests() as stop``: a Ctrl-C (SIGINT) or SIGTERM (a cluster's time limit,
+    ``kill``) inside sets ``stop.requested`` to the signal's name instead of interrupting,
+    so the training loop ends the generation, checkpoints it and stops; a second signal
+    interrupts at once (KeyboardInterrupt). Outside the main thread, where handlers cannot
+    be installed, it does nothing. The previous handlers are restored on exit."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
+
+    def __init__(self):
+        self.requested: str | None = None
+        self._previous: dict = {}
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested is not None:
+            raise KeyboardInterrupt
+        self.requested = signal.Signals(signum).name
+
+    def __enter__(self) -> StopRequests:
+        if threading.current_thread() is threading.main_thread():
+            for name in self.SIGNALS:
+                number = getattr(signal, name)
+                self._previous[number] = signal.signal(number, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for number, handler in self._previous.items():
+            signal.signal(number, handler)
+
+
 def write_rows(
     out: Path,
     learner,
@@ -328,10 +360,11 @@ def write_rows(
     already complete), with TensorBoard scalars and the progress bar (its best eval G
     starting from ``rows``, the rows kept from before a resume; ``restart_clock``: its rate
     counts from the end of the first generation, which compiles or loads the kernels);
-    ``after_row()`` is called once each row is written and checkpointed. Closes ``log`` and
-    ``bar``."""
+    ``after_row()`` is called once each row is written and checkpointed. A Ctrl-C or
+    SIGTERM ends the current generation, checkpoints it and raises KeyboardInterrupt
+    (:class:`StopRequests`), so a resume loses nothing. Closes ``log`` and ``bar``."""
     best = max((r["eval_G"] for r in rows), default=math.nan)
-    with open(out / METRICS, "a", newline="") as f:
+    with open(out / METRICS, "a", newline="") as f, StopRequests() as stop:
         writer = csv.DictWriter(f, fieldnames=header)
         first = restart_clock
         while learner.generation < total:
@@ -340,9 +373,11 @@ def write_rows(
             if not math.isnan(row["eval_G"]):
                 best = row["eval_G"] if math.isnan(best) else max(best, row["eval_G"])
             done = learner.generation
-            if done % every == 0 or done == total:
+            if done % every == 0 or done == total or stop.requested:
                 f.flush()
                 save_state(out, learner)
+            if stop.requested:  # checkpointed at this generation: resume goes on from here
+                raise KeyboardInterrupt(f"stopped by {stop.requested} after generation {done}")
             if log:
                 log.write_row(row)
             if after_row:

@@ -36,10 +36,13 @@ finished, so a later machine runs only what no earlier one finished (:func:`list
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import shutil
+import signal
 import sys
+import threading
 import time
 import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -265,18 +268,63 @@ def run_sweep(
     if todo and ray_address:
         _run_ray(todo, ray_address, record, bar, skipped, workers)
     elif todo:
-        with ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
-            pending = {pool.submit(run_one, spec) for spec in todo}
-            while pending:
-                _display(bar, skipped + len(finished) + len(failed), min(workers, len(pending)),
-                         len(failed))  # fmt: skip
-                done, pending = wait(pending, timeout=1.0, return_when=FIRST_COMPLETED)
-                for future in done:
-                    record(future.result())
+        _run_pool(todo, workers, record, bar, skipped, finished, failed)
     _display(bar, len(specs), 0, len(failed))
     if bar:
         bar.close()
     return SweepReport(len(specs), skipped, finished, failed, time.perf_counter() - start)
+
+
+def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:
+    """The runs on a local process pool. Interrupted (Ctrl-C, or SIGTERM to this process,
+    which is passed on to the workers), each running run checkpoints the generation it is
+    in and stops (:class:`physrover.runs.StopRequests`), no further run starts, and the
+    KeyboardInterrupt goes on once they have."""
+    workers = min(workers, len(todo))
+    pool = ProcessPoolExecutor(max_workers=workers)
+    queue, pending = list(todo), set()
+
+    def fill() -> None:  # one run per worker in the pool at a time: none queued to cancel
+        while queue and len(pending) < workers:
+            pending.add(pool.submit(run_one, queue.pop(0)))
+
+    try:
+        with _sigterm_as_interrupt() as received:
+            fill()
+            while pending:
+                _display(bar, skipped + len(finished) + len(failed), len(pending), len(failed))
+                done, pending = wait(pending, timeout=1.0, return_when=FIRST_COMPLETED)
+                for future in done:
+                    record(future.result())
+                fill()
+    except KeyboardInterrupt:
+        if received:  # a Ctrl-C reaches the workers itself (the terminal's process group)
+            for process in list(getattr(pool, "_processes", {}).values()):
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(process.pid, signal.SIGTERM)
+        pool.shutdown(wait=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """Inside, SIGTERM raises KeyboardInterrupt, as a Ctrl-C does; yields a list that holds
+    the signal once one came (empty for a Ctrl-C). Outside the main thread: nothing."""
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+
+    def interrupt(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield received
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _run_ray(todo, address, record, bar, skipped, workers) -> None:
@@ -335,9 +383,6 @@ def _connect_ray(ray, address: str, workers: int, timeout: int = 30) -> None:
     Ray must be initialised in the main thread, so the time limit is an alarm signal (on
     platforms that have one, when called from the main thread).
     """
-    import signal
-    import threading
-
     if address != "local":
         _check_reachable(address)
     kwargs: dict[str, Any] = {"num_cpus": workers} if address == "local" else {}
