@@ -151,7 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Each group's final score (mean eval G over its last N generations) "
         "+- the Student-t 95%% half-width, range and fraction of runs that learn, as a "
         "Markdown table; --compare FIELD=A,B also sets A against B in every cell of the other "
-        "fields (exact permutation p, Holm-adjusted over the comparisons, Welch's t, Hedges' g).",
+        "fields (permutation p, exact up to 10 vs 10 seeds; Holm-adjusted over the comparisons; "
+        "Welch's t; Hedges' g).",
     )
     p.add_argument("run_dirs", nargs="+", help="run directories, or directories holding them")
     p.add_argument("--last", type=int, default=50, help="final score: mean of the last N "

@@ -251,7 +251,7 @@ def cmd_table(args: argparse.Namespace) -> int:
     if args.last < 1:
         raise UsageError(f"--last must be >= 1, got {args.last}")
     runs = load_runs(run_dirs, by=tuple(args.by or ()))
-    for message in compare.length_messages(runs):
+    for message in compare.scored(runs, args.last)[1] + compare.length_messages(runs):
         print(message, file=sys.stderr)
     rows = compare.cells(runs, args.last, args.learned)
     tables = [("cells", rows, compare.CELL_COLUMNS, compare.cells_markdown(rows, args.last))]

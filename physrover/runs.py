@@ -16,6 +16,7 @@ a resumed run ends bit-identical to an uninterrupted one with the same seed.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -311,26 +312,50 @@ def train(
     return out
 
 
+_stop_event = None
+"""A sweep worker's stop: an event its pool sets when the sweep is interrupted
+(:func:`set_stop_event`); None in a process of its own."""
+
+
+def set_stop_event(event) -> None:
+    """Make ``event`` (``is_set()``) this process's stop request instead of its own signals:
+    what a sweep's pool workers do (:mod:`physrover.sweep`), which then leave the signals to
+    the sweep's process."""
+    global _stop_event
+    _stop_event = event
+
+
 class StopRequests:
     """``with StopRequests() as stop``: a Ctrl-C (SIGINT) or SIGTERM (a cluster's time limit,
     ``kill``) inside sets ``stop.requested`` to the signal's name instead of interrupting,
-    so the training loop ends the generation, checkpoints it and stops; a second signal
-    interrupts at once (KeyboardInterrupt). Outside the main thread, where handlers cannot
-    be installed, it does nothing. The previous handlers are restored on exit."""
+    so the training loop ends the generation, checkpoints it and stops; another SIGINT
+    interrupts at once (KeyboardInterrupt; a repeated SIGTERM, as a cluster may send to
+    every process of a job, is the same request). In a sweep's worker the request is the
+    sweep's stop event (:func:`set_stop_event`) and no handler is installed; outside the main
+    thread, where handlers cannot be installed, it does nothing. :meth:`held` defers the
+    signals while a checkpoint is written. The previous handlers are restored on exit."""
 
     SIGNALS = ("SIGINT", "SIGTERM")
 
     def __init__(self):
-        self.requested: str | None = None
+        self._requested: str | None = None
         self._previous: dict = {}
 
+    @property
+    def requested(self) -> str | None:
+        """The signal's name once one came (or "the sweep's stop"), else None."""
+        if self._requested is None and _stop_event is not None and _stop_event.is_set():
+            self._requested = "the sweep's stop"
+        return self._requested
+
     def _handle(self, signum, frame) -> None:
-        if self.requested is not None:
+        name = signal.Signals(signum).name
+        if self._requested is not None and name == "SIGINT":
             raise KeyboardInterrupt
-        self.requested = signal.Signals(signum).name
+        self._requested = self._requested or name
 
     def __enter__(self) -> StopRequests:
-        if threading.current_thread() is threading.main_thread():
+        if _stop_event is None and threading.current_thread() is threading.main_thread():
             for name in self.SIGNALS:
                 number = getattr(signal, name)
                 self._previous[number] = signal.signal(number, self._handle)
@@ -338,7 +363,21 @@ class StopRequests:
 
     def __exit__(self, *exc) -> None:
         for number, handler in self._previous.items():
-            signal.signal(number, handler)
+            signal.signal(number, signal.SIG_DFL if handler is None else handler)
+
+    @contextlib.contextmanager
+    def held(self):
+        """Inside, SIGINT and SIGTERM wait (POSIX; elsewhere nothing is held): a second
+        Ctrl-C cannot leave a checkpoint's two files, or a metrics row, half written."""
+        mask = {signal.SIGINT, signal.SIGTERM}
+        can = bool(self._previous) and hasattr(signal, "pthread_sigmask")
+        if can:
+            signal.pthread_sigmask(signal.SIG_BLOCK, mask)
+        try:
+            yield
+        finally:
+            if can:
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, mask)
 
 
 def write_rows(
@@ -361,36 +400,46 @@ def write_rows(
     starting from ``rows``, the rows kept from before a resume; ``restart_clock``: its rate
     counts from the end of the first generation, which compiles or loads the kernels);
     ``after_row()`` is called once each row is written and checkpointed. A Ctrl-C or
-    SIGTERM ends the current generation, checkpoints it and raises KeyboardInterrupt
-    (:class:`StopRequests`), so a resume loses nothing. Closes ``log`` and ``bar``."""
+    SIGTERM ends the current generation (its row written, logged and shown), checkpoints it
+    and raises KeyboardInterrupt (:class:`StopRequests`), so a resume loses nothing; one in
+    the last generation lets the run finish. Closes ``log`` and ``bar``."""
     best = max((r["eval_G"] for r in rows), default=math.nan)
-    with open(out / METRICS, "a", newline="") as f, StopRequests() as stop:
-        writer = csv.DictWriter(f, fieldnames=header)
-        first = restart_clock
-        while learner.generation < total:
-            row = next_row()
-            writer.writerow({k: _fmt(v) for k, v in row.items()})
-            if not math.isnan(row["eval_G"]):
-                best = row["eval_G"] if math.isnan(best) else max(best, row["eval_G"])
-            done = learner.generation
-            if done % every == 0 or done == total or stop.requested:
-                f.flush()
-                save_state(out, learner)
-            if stop.requested:  # checkpointed at this generation: resume goes on from here
-                raise KeyboardInterrupt(f"stopped by {stop.requested} after generation {done}")
-            if log:
-                log.write_row(row)
-            if after_row:
-                after_row()
-            if bar:
-                if first:
-                    bar.restart_clock(done)
-                    first = False
-                bar.update(done, **{"eval G": row["eval_G"], "best G": best})
-    if bar:
-        bar.close()
-    if log:
-        log.close()
+    saved = learner.generation
+    try:
+        with open(out / METRICS, "a", newline="") as f, StopRequests() as stop:
+            writer = csv.DictWriter(f, fieldnames=header)
+            first = restart_clock
+            while learner.generation < total:
+                row = next_row()
+                done = learner.generation
+                with stop.held():
+                    writer.writerow({k: _fmt(v) for k, v in row.items()})
+                    if done % every == 0 or done == total:
+                        f.flush()
+                        save_state(out, learner)
+                        saved = done
+                if not math.isnan(row["eval_G"]):
+                    best = row["eval_G"] if math.isnan(best) else max(best, row["eval_G"])
+                if log:
+                    log.write_row(row)
+                if after_row:
+                    after_row()
+                if bar:
+                    if first:
+                        bar.restart_clock(done)
+                        first = False
+                    bar.update(done, **{"eval G": row["eval_G"], "best G": best})
+                if stop.requested and done < total:  # resume goes on from this generation
+                    with stop.held():
+                        if saved != done:
+                            f.flush()
+                            save_state(out, learner)
+                    raise KeyboardInterrupt(f"stopped by {stop.requested} after generation {done}")
+    finally:
+        if bar:
+            bar.close()
+        if log:
+            log.close()
     if not (out / STATE_JSON).exists():
         save_state(out, learner)
 

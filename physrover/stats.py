@@ -49,6 +49,8 @@ def permutation_test(a, b, max_exact: int = 200_000, resamples: int = 100_000, s
     import itertools
 
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if not (np.isfinite(a).all() and np.isfinite(b).all()):
+        raise ValueError("permutation_test needs finite samples (a NaN compares as no split)")
     pooled, n_a = np.concatenate([a, b]), len(a)
     total = pooled.sum()
     observed = abs(a.mean() - b.mean())

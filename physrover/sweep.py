@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import multiprocessing
 import os
 import shutil
 import signal
@@ -276,12 +277,16 @@ def run_sweep(
 
 
 def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:
-    """The runs on a local process pool. Interrupted (Ctrl-C, or SIGTERM to this process,
-    which is passed on to the workers), each running run checkpoints the generation it is
-    in and stops (:class:`physrover.runs.StopRequests`), no further run starts, and the
-    KeyboardInterrupt goes on once they have."""
+    """The runs on a local process pool. Interrupted (Ctrl-C, or SIGTERM to this process or
+    to a worker), each running run checkpoints the generation it is in and stops, no further
+    run starts, and the KeyboardInterrupt goes on once they have; a second interrupt while
+    they finish their generations kills them (their last checkpoints stay). The workers
+    leave the signals to this process and stop on its event (:func:`_worker_init`)."""
     workers = min(workers, len(todo))
-    pool = ProcessPoolExecutor(max_workers=workers)
+    context = multiprocessing.get_context()
+    stop = context.Event()
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                               initializer=_worker_init, initargs=(stop,))  # fmt: skip
     queue, pending = list(todo), set()
 
     def fill() -> None:  # one run per worker in the pool at a time: none queued to cancel
@@ -289,7 +294,7 @@ def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:
             pending.add(pool.submit(run_one, queue.pop(0)))
 
     try:
-        with _sigterm_as_interrupt() as received:
+        with _sigterm_as_interrupt():
             fill()
             while pending:
                 _display(bar, skipped + len(finished) + len(failed), len(pending), len(failed))
@@ -298,33 +303,48 @@ def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:
                     record(future.result())
                 fill()
     except KeyboardInterrupt:
-        if received:  # a Ctrl-C reaches the workers itself (the terminal's process group)
+        stop.set()  # each running run ends its generation, checkpoints it and stops
+        try:
+            with _sigterm_as_interrupt():
+                pool.shutdown(wait=True, cancel_futures=True)
+        except KeyboardInterrupt:  # a second one: now, from their last checkpoints
             for process in list(getattr(pool, "_processes", {}).values()):
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(process.pid, signal.SIGTERM)
-        pool.shutdown(wait=True)
+                process.kill()
+            pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
         raise
     pool.shutdown(wait=True)
 
 
+def _worker_init(stop) -> None:
+    """A pool worker: Ctrl-C is the sweep's to handle (the terminal sends it to every
+    process of the group), a SIGTERM here stops the whole sweep, and the runs stop on the
+    sweep's event (:func:`physrover.runs.set_stop_event`)."""
+    from physrover.runs import set_stop_event
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
+    set_stop_event(stop)
+
+
 @contextlib.contextmanager
 def _sigterm_as_interrupt():
-    """Inside, SIGTERM raises KeyboardInterrupt, as a Ctrl-C does; yields a list that holds
-    the signal once one came (empty for a Ctrl-C). Outside the main thread: nothing."""
-    received: list[int] = []
+    """Inside, SIGTERM raises KeyboardInterrupt, as a Ctrl-C does. Outside the main thread:
+    nothing."""
     if threading.current_thread() is not threading.main_thread():
-        yield received
+        yield
         return
 
     def interrupt(signum, frame):
-        received.append(signum)
         raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGTERM, interrupt)
     try:
-        yield received
+        yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def _run_ray(todo, address, record, bar, skipped, workers) -> None:

@@ -105,13 +105,32 @@ def test_a_group_of_runs_of_different_lengths_is_named(tmp_path, capsys):
     assert "D n_req=4: runs of 2 to 3 generations" in capsys.readouterr().err
 
 
+def test_values_are_read_as_labels_and_unscored_runs_left_out(tmp_path, capsys):
+    root = _runs(tmp_path / "runs")
+    empty = root / "D_4_2" / "metrics.csv"  # started, no generation yet
+    empty.write_text(empty.read_text().splitlines(keepends=True)[0])
+    assert main(["table", str(root), "--last", "2", "--compare", "n_req=4.0,6"]) == 0
+    captured = capsys.readouterr()
+    assert "D_4_2: no generations yet, left out" in captured.err
+    assert "| D | n_req=4 | n_req=6 | 2/3 | 0.00 | 0.33 |" in captured.out
+    assert parse_compare("critic_lr=5E-6,0.50") == ("critic_lr", "5e-06", "0.5")
+    with pytest.raises(ValueError, match="finite"):
+        compare_samples([1.0, float("nan")], [1.0, 2.0])
+
+
+def test_a_comparison_no_cell_can_make_is_an_error(tmp_path, capsys):
+    root = _runs(tmp_path / "runs", {("max-critic", 4): [1.0, 2.0], ("D", 6): [0.0, 1.0]})
+    assert main(["table", str(root), "--compare", "method=max-critic,D"]) == 2
+    assert "no cell has 2 runs or more of both" in capsys.readouterr().err
+
+
 def test_bad_comparisons_are_one_line(tmp_path, capsys):
     root = _runs(tmp_path / "runs")
     for spec in ("method=max-critic", "method", "=a,b", "method=a,b,c"):
         with pytest.raises(ConfigError, match="expected FIELD=A,B"):
             parse_compare(spec)
     assert main(["table", str(root), "--compare", "method=max-critic,mean-critic"]) == 2
-    assert "no run has method = mean-critic" in capsys.readouterr().err
+    assert "no run has method = mean-critic (they have: D, max-critic)" in capsys.readouterr().err
     assert main(["table", str(root), "--compare", "n_reqq=4,6"]) == 2
     assert "n_reqq: not a config field" in capsys.readouterr().err
     assert main(["table", str(root), "--last", "0"]) == 2

@@ -32,15 +32,30 @@ def test_a_signal_checkpoints_the_generation_and_a_resume_goes_on(sig, tmp_path)
     config = RunConfig().with_overrides(EASY)
     full = train(config, tmp_path / "full", generations=7, progress=False)
     stopped = tmp_path / "stopped"
-    with pytest.raises(KeyboardInterrupt, match=f"stopped by {sig.name} after generation 4"):
+    with pytest.raises(KeyboardInterrupt, match=f"stopped by {sig.name} after generation 3"):
         train(config, stopped, generations=7, progress=False, on_generation=_signal_at(3, sig))
-    # The signal came after generation 3's row; generation 4 ran to its end and was saved,
-    # though checkpoint_every (100) would not have saved it.
-    assert json.loads((stopped / "state.json").read_text())["generation"] == 4
-    assert len(read_metrics(stopped / "metrics.csv")) == 4
+    # The signal came while generation 3 was reported: it was saved, though checkpoint_every
+    # (100) would not have saved it.
+    assert json.loads((stopped / "state.json").read_text())["generation"] == 3
+    assert len(read_metrics(stopped / "metrics.csv")) == 3
     assert signal.getsignal(sig) in (signal.default_int_handler, signal.SIG_DFL)  # restored
     train(None, stopped, resume=True, progress=False)
     assert_same_run(full, stopped)
+
+
+def test_a_signal_in_the_last_generation_lets_the_run_finish(tmp_path):
+    config = RunConfig().with_overrides(EASY)
+    out = train(config, tmp_path / "run", generations=3, progress=False,
+                on_generation=_signal_at(3, signal.SIGTERM))  # fmt: skip
+    assert json.loads((out / "state.json").read_text())["generation"] == 3
+
+
+def test_a_repeated_sigterm_is_one_request_a_second_sigint_interrupts(tmp_path):
+    config = RunConfig().with_overrides(EASY)
+    with pytest.raises(KeyboardInterrupt, match="stopped by SIGTERM after generation 2"):
+        train(config, tmp_path / "a", generations=7, progress=False,
+              on_generation=_signal_at(2, signal.SIGTERM, signal.SIGTERM))  # fmt: skip
+    assert json.loads((tmp_path / "a" / "state.json").read_text())["generation"] == 2
 
 
 def test_a_second_signal_interrupts_at_once(tmp_path):
@@ -53,35 +68,75 @@ def test_a_second_signal_interrupts_at_once(tmp_path):
     assert not (out / "state.json").exists()  # nothing checkpointed yet (every 100)
 
 
-def test_sigterm_to_a_sweep_stops_its_runs_at_a_checkpoint_and_starts_no_other(tmp_path):
+SWEEP = (
+    '[sweep]\nname = "long"\nseeds = SEEDS\n\n[base.domain]\nn_rovers = 3\nn_req = 1\n'
+    'steps = 10\n\n[base.learn]\nmethod = "D"\ngenerations = 1000000\npopulation = 4\n'
+    "eval_episodes = 1\ncheckpoint_every = 1000000\n"
+)
+
+
+def _sweep(tmp_path, text):
+    """``physrover sweep`` of ``text`` in its own process group, 2 workers; (process, root)."""
     sweep = tmp_path / "long.toml"
-    sweep.write_text(
-        '[sweep]\nname = "long"\nseeds = 3\n\n[base.domain]\nn_rovers = 3\nn_req = 1\n'
-        'steps = 10\n\n[base.learn]\nmethod = "D"\ngenerations = 1000000\npopulation = 4\n'
-        "eval_episodes = 1\ncheckpoint_every = 1000000\n"
-    )
+    sweep.write_text(text)
     root = tmp_path / "root"
     code = "import sys; from physrover.cli import main; sys.exit(main(sys.argv[1:]))"
     argv = [sys.executable, "-c", code, "sweep", str(sweep), "--workers", "2", "--root", str(root)]
-    sweep_process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     text=True, start_new_session=True)  # fmt: skip
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)  # fmt: skip
+    return process, root / "long"
+
+
+def _wait_for(process, condition):
+    deadline = time.monotonic() + 120
+    while not condition():
+        assert time.monotonic() < deadline and process.poll() is None, "no training"
+        time.sleep(0.2)
+
+
+def _stopped(process, send):
+    """Send the signal (``send(pid)``), then the sweep's stderr once it has exited."""
     try:
-        runs = [root / "long" / f"seed={seed}" for seed in range(3)]
-        deadline = time.monotonic() + 120
-        while not all(_rows(run) >= 2 for run in runs[:2]):  # both workers are training
-            assert time.monotonic() < deadline and sweep_process.poll() is None, "no training"
-            time.sleep(0.2)
-        os.kill(sweep_process.pid, signal.SIGTERM)  # the parent only, as `kill PID` does
-        _out, err = sweep_process.communicate(timeout=60)
+        send(process.pid)
+        _out, err = process.communicate(timeout=60)
+        return err
     finally:  # never leave a sweep of a million generations behind
-        if sweep_process.poll() is None:
-            os.killpg(sweep_process.pid, signal.SIGKILL)
-    assert sweep_process.returncode == 130, err
-    assert "sweep interrupted" in err
-    for run in runs[:2]:  # each checkpointed where it stopped, far from checkpoint_every
-        saved = json.loads((run / "state.json").read_text())["generation"]
-        assert saved == _rows(run) >= 2
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+
+
+def _checkpointed_where_it_stopped(run):
+    saved = json.loads((run / "state.json").read_text())["generation"]
+    assert saved == _rows(run) >= 2  # far from checkpoint_every (10^6)
+
+
+def test_sigterm_to_a_sweep_stops_its_runs_at_a_checkpoint_and_starts_no_other(tmp_path):
+    process, root = _sweep(tmp_path, SWEEP.replace("SEEDS", "3"))
+    runs = [root / f"seed={seed}" for seed in range(3)]
+    _wait_for(process, lambda: all(_rows(run) >= 2 for run in runs[:2]))  # both training
+    err = _stopped(process, lambda pid: os.kill(pid, signal.SIGTERM))  # as `kill PID` does
+    assert process.returncode == 130 and "sweep interrupted" in err, err
+    for run in runs[:2]:
+        _checkpointed_where_it_stopped(run)
     assert not (runs[2] / "metrics.csv").exists()  # the third never started
+
+
+@pytest.mark.parametrize("to", ["group", "parent"])
+def test_ctrl_c_to_a_sweep_with_an_idle_worker(to, tmp_path):
+    """A terminal's Ctrl-C reaches every process of the group, an idle worker's too (the
+    pool must not break, which would kill the running run without a checkpoint); ``kill
+    -INT PID`` or an IDE's stop button reaches the sweep's process only (its runs must stop
+    all the same, not run on to their end)."""
+    text = SWEEP.replace("SEEDS", "1") + "\n[grid]\ngenerations = [3, 1000000]\n"
+    process, root = _sweep(tmp_path, text)
+    short, long = root / "generations=3_seed=0", root / "generations=1000000_seed=0"
+    _wait_for(process, lambda: _rows(long) >= 2 and (short / "state.json").exists())
+    time.sleep(1.0)  # the short run's worker is idle now
+    send = os.killpg if to == "group" else os.kill
+    err = _stopped(process, lambda pid: send(pid, signal.SIGINT))
+    assert process.returncode == 130 and "sweep interrupted" in err, err
+    _checkpointed_where_it_stopped(long)
+    assert json.loads((short / "state.json").read_text())["generation"] == 3
 
 
 def _rows(run) -> int:
