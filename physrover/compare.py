@@ -123,14 +123,15 @@ def cells(runs: list[Run], last: int, threshold: float = 0.5) -> list[dict]:
 
 
 def parse_compare(text: str) -> tuple[str, str, str]:
-    """``--compare FIELD=A,B`` -> (FIELD, A, B), A and B written as group labels write
-    values (``0.50`` -> ``0.5``, ``1e-3`` -> ``0.001``, ``true``; text as given)."""
+    """``--compare FIELD=A,B`` -> (FIELD, A, B) as written (:func:`comparisons` also
+    matches A and B read as values and written as group labels write them: ``0.50`` is
+    ``0.5``, ``1e-3`` is ``0.001``)."""
     field, sep, values = text.partition("=")
     a, comma, b = values.partition(",")
     if not (sep and comma and field.strip() and a.strip() and b.strip()) or "," in b:
         raise ConfigError("--compare", f"expected FIELD=A,B (e.g. method=max-critic,D), got "
                           f"{text!r}")  # fmt: skip
-    return field.strip(), _as_label(a.strip()), _as_label(b.strip())
+    return field.strip(), a.strip(), b.strip()
 
 
 def _as_label(text: str) -> str:
@@ -157,16 +158,19 @@ def comparisons(
         return " ".join(parts) or "all runs"
 
     sides: dict[str, dict[str, list[float]]] = defaultdict(lambda: {a: [], b: []})
-    present = set()
+    present, seen = set(), set()
+    spellings = {a: {a, _as_label(a)}, b: {b, _as_label(b)}}
     for run, score in scored(runs, last)[0]:
         value = format_value(run.fields.get(field))
         present.add(value)
-        if value in (a, b):
-            sides[cell_of(run)][value].append(score)
-    for value in (a, b):
-        if value not in present:
+        for side, spelt in spellings.items():
+            if value in spelt:
+                sides[cell_of(run)][side].append(score)
+                seen.add(side)
+    for side in (a, b):
+        if side not in seen:
             have = ", ".join(sorted(present - {"None"}))
-            raise ConfigError("--compare", f"no run has {field} = {value} (they have: {have})")
+            raise ConfigError("--compare", f"no run has {field} = {side} (they have: {have})")
     rows, skipped = [], []
     for cell, side in sides.items():
         if min(len(side[a]), len(side[b])) < 2:  # Welch's t and g need a spread on each side

@@ -142,10 +142,15 @@ def read_metrics(path: Path) -> list[dict[str, float]]:
     """The rows of a metrics.csv, generations counted from 1.
 
     physrover 0.1.0 counted the rows' generations from 0; such files (first row 0) are read
-    shifted by one, so old and new runs plot on one axis.
+    shifted by one, so old and new runs plot on one axis. A last line without its line end
+    (a process killed while writing it) is not a row.
     """
     with open(path, newline="") as f:
-        rows = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+        text = f.read()
+    lines = text.splitlines(keepends=True)
+    if lines and not lines[-1].endswith("\n"):
+        lines.pop()
+    rows = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(lines)]
     if rows and rows[0]["generation"] == 0:
         for row in rows:
             row["generation"] += 1
@@ -331,15 +336,16 @@ class StopRequests:
     so the training loop ends the generation, checkpoints it and stops; another SIGINT
     interrupts at once (KeyboardInterrupt; a repeated SIGTERM, as a cluster may send to
     every process of a job, is the same request). In a sweep's worker the request is the
-    sweep's stop event (:func:`set_stop_event`) and no handler is installed; outside the main
-    thread, where handlers cannot be installed, it does nothing. :meth:`held` defers the
-    signals while a checkpoint is written. The previous handlers are restored on exit."""
-
-    SIGNALS = ("SIGINT", "SIGTERM")
+    sweep's stop event (:func:`set_stop_event`) and "at once" is the sweep's SIGUSR1.
+    Inside :meth:`held` (a checkpoint or a metrics row being written) an "at once" waits
+    until the writing is done. Outside the main thread, where handlers cannot be installed,
+    it does nothing. The previous handlers are restored on exit."""
 
     def __init__(self):
         self._requested: str | None = None
         self._previous: dict = {}
+        self._holding = 0
+        self._deferred = False
 
     @property
     def requested(self) -> str | None:
@@ -348,17 +354,28 @@ class StopRequests:
             self._requested = "the sweep's stop"
         return self._requested
 
+    def _now(self) -> None:
+        if self._holding:
+            self._deferred = True  # raised when the writing is done (held's exit)
+        else:
+            raise KeyboardInterrupt
+
     def _handle(self, signum, frame) -> None:
         name = signal.Signals(signum).name
         if self._requested is not None and name == "SIGINT":
-            raise KeyboardInterrupt
+            self._now()
         self._requested = self._requested or name
 
     def __enter__(self) -> StopRequests:
-        if _stop_event is None and threading.current_thread() is threading.main_thread():
-            for name in self.SIGNALS:
-                number = getattr(signal, name)
-                self._previous[number] = signal.signal(number, self._handle)
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        if _stop_event is None:
+            handlers = {signal.SIGINT: self._handle, signal.SIGTERM: self._handle}
+        else:  # a sweep's worker: the sweep's process has the signals
+            handlers = {getattr(signal, "SIGUSR1", None): lambda signum, frame: self._now()}
+        for number, handler in handlers.items():
+            if number is not None:
+                self._previous[number] = signal.signal(number, handler)
         return self
 
     def __exit__(self, *exc) -> None:
@@ -367,17 +384,17 @@ class StopRequests:
 
     @contextlib.contextmanager
     def held(self):
-        """Inside, SIGINT and SIGTERM wait (POSIX; elsewhere nothing is held): a second
-        Ctrl-C cannot leave a checkpoint's two files, or a metrics row, half written."""
-        mask = {signal.SIGINT, signal.SIGTERM}
-        can = bool(self._previous) and hasattr(signal, "pthread_sigmask")
-        if can:
-            signal.pthread_sigmask(signal.SIG_BLOCK, mask)
+        """Inside, an interrupt "at once" waits (the handlers still run, whichever thread
+        the signal reached, and record it): a second Ctrl-C cannot leave a checkpoint's two
+        files, or a metrics row, half written."""
+        self._holding += 1
         try:
             yield
         finally:
-            if can:
-                signal.pthread_sigmask(signal.SIG_UNBLOCK, mask)
+            self._holding -= 1
+        if self._deferred and not self._holding:
+            self._deferred = False
+            raise KeyboardInterrupt
 
 
 def write_rows(

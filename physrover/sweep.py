@@ -200,7 +200,13 @@ def run_status(spec: RunSpec) -> str:
 
 
 def run_one(spec: RunSpec) -> tuple[str, float, str | None]:
-    """Train (or resume) one run; returns (name, seconds, error or None). Never raises."""
+    """Train (or resume) one run; returns (name, seconds, error or None). A run's error is
+    returned, not raised; a stop of the sweep (:func:`_run_pool`) raises KeyboardInterrupt,
+    before the run starts if it came first."""
+    from physrover import runs
+
+    if runs._stop_event is not None and runs._stop_event.is_set():
+        raise KeyboardInterrupt(f"{spec.name}: not started, the sweep is stopping")
     start = time.perf_counter()
     try:
         pin_threads(1)
@@ -279,9 +285,10 @@ def run_sweep(
 def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:
     """The runs on a local process pool. Interrupted (Ctrl-C, or SIGTERM to this process or
     to a worker), each running run checkpoints the generation it is in and stops, no further
-    run starts, and the KeyboardInterrupt goes on once they have; a second interrupt while
-    they finish their generations kills them (their last checkpoints stay). The workers
-    leave the signals to this process and stop on its event (:func:`_worker_init`)."""
+    run starts, and the KeyboardInterrupt goes on once they have; another Ctrl-C while they
+    finish their generations stops them at once (SIGUSR1: each waits only for a checkpoint
+    or metrics row it is writing). The workers leave SIGINT to this process and stop on its
+    event (:func:`_worker_init`)."""
     workers = min(workers, len(todo))
     context = multiprocessing.get_context()
     stop = context.Event()
@@ -294,7 +301,7 @@ def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:
             pending.add(pool.submit(run_one, queue.pop(0)))
 
     try:
-        with _sigterm_as_interrupt():
+        with _sigterm_as(KeyboardInterrupt):
             fill()
             while pending:
                 _display(bar, skipped + len(finished) + len(failed), len(pending), len(failed))
@@ -304,13 +311,17 @@ def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:
                 fill()
     except KeyboardInterrupt:
         stop.set()  # each running run ends its generation, checkpoints it and stops
-        try:
-            with _sigterm_as_interrupt():
+        with _sigterm_as(None):  # a repeated SIGTERM is the same request
+            try:
                 pool.shutdown(wait=True, cancel_futures=True)
-        except KeyboardInterrupt:  # a second one: now, from their last checkpoints
-            for process in list(getattr(pool, "_processes", {}).values()):
-                process.kill()
-            pool.shutdown(wait=False, cancel_futures=True)
+            except KeyboardInterrupt:  # another Ctrl-C: now
+                for process in list(getattr(pool, "_processes", {}).values()):
+                    with contextlib.suppress(ProcessLookupError):
+                        os.kill(process.pid, getattr(signal, "SIGUSR1", signal.SIGTERM))
+                pool.shutdown(wait=True, cancel_futures=True)
+        for future in pending:  # what finished or failed meanwhile is reported too
+            if future.done() and not future.cancelled() and future.exception() is None:
+                record(future.result())
         raise
     except BaseException:
         pool.shutdown(wait=False, cancel_futures=True)
@@ -330,17 +341,18 @@ def _worker_init(stop) -> None:
 
 
 @contextlib.contextmanager
-def _sigterm_as_interrupt():
-    """Inside, SIGTERM raises KeyboardInterrupt, as a Ctrl-C does. Outside the main thread:
-    nothing."""
+def _sigterm_as(action):
+    """Inside, SIGTERM raises ``action`` (KeyboardInterrupt, as a Ctrl-C does) or, with
+    None, is ignored. Outside the main thread: nothing."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
-    def interrupt(signum, frame):
-        raise KeyboardInterrupt
+    def handler(signum, frame):
+        if action is not None:
+            raise action
 
-    previous = signal.signal(signal.SIGTERM, interrupt)
+    previous = signal.signal(signal.SIGTERM, handler)
     try:
         yield
     finally:

@@ -6,13 +6,16 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
 from conftest import assert_same_run
 
+from physrover import runs
 from physrover.config import RunConfig
-from physrover.runs import read_metrics, train
+from physrover.runs import StopRequests, read_metrics, train
+from physrover.sweep import RunSpec, run_one
 
 EASY = dict(n_rovers=3, n_req=1, population=10, steps=20, method="max-critic",
             checkpoint_every=100, eval_episodes=2)  # fmt: skip
@@ -144,3 +147,38 @@ def _rows(run) -> int:
         return len((run / "metrics.csv").read_text().splitlines()) - 1
     except FileNotFoundError:
         return 0
+
+
+def test_an_interrupt_at_once_waits_for_the_writing_in_hand():
+    reached = []
+    with StopRequests() as stop:
+        signal.raise_signal(signal.SIGINT)  # the first: a request
+        assert stop.requested == "SIGINT"
+        with pytest.raises(KeyboardInterrupt):
+            with stop.held():
+                signal.raise_signal(signal.SIGINT)  # the second: once the writing is done
+                reached.append("the rest of the checkpoint")
+    assert reached == ["the rest of the checkpoint"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+def test_a_sweep_worker_stops_on_the_event_and_now_on_sigusr1(monkeypatch, tmp_path):
+    event = threading.Event()
+    monkeypatch.setattr(runs, "_stop_event", event)
+    with StopRequests() as stop:
+        assert stop.requested is None
+        event.set()
+        assert stop.requested == "the sweep's stop"
+        with pytest.raises(KeyboardInterrupt), stop.held():
+            signal.raise_signal(signal.SIGUSR1)
+    spec = RunSpec("late", RunConfig().with_overrides(EASY).to_toml(), str(tmp_path / "late"))
+    with pytest.raises(KeyboardInterrupt, match="not started"):
+        run_one(spec)  # a run the pool had queued when the sweep stopped
+    assert not (tmp_path / "late").exists()
+
+
+def test_a_metrics_line_cut_by_a_kill_is_not_a_row(tmp_path):
+    path = tmp_path / "metrics.csv"
+    path.write_text("generation,eval_G\r\n1,0.5\r\n2,0.7\r\n3,0.")
+    assert read_metrics(path) == [{"generation": 1.0, "eval_G": 0.5},
+                                  {"generation": 2.0, "eval_G": 0.7}]  # fmt: skip
