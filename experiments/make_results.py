@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from physrover import plots
-from physrover.curve_data import Table, scores_table
+from physrover.curve_data import Table, final_score, scores_table
 from physrover.evaluate import motion_model
 from physrover.provenance import read_provenance
 from physrover.runs import find_runs, read_metrics
@@ -83,7 +83,7 @@ def ablation_table(sweep: Path, last: int) -> None:
         rows = read_metrics(run.path / "metrics.csv")
         loss = np.array([r["critic_loss"] for r in rows[-last:]], dtype=float)
         cell = cells[(variant, run.fields["n_req"])]
-        cell["final"].append(float(run.eval_G[-last:].mean()))
+        cell["final"].append(final_score(run, last))
         cell["loss"].append(float(np.nanmean(loss)) if np.isfinite(loss).any() else np.nan)
         cell["gens"].append(len(rows))
     n_reqs = sorted({n for _, n in cells})
@@ -187,7 +187,7 @@ def _final_scores(runs: list[plots.Run], rows: list[dict], x: str, last: int,
         return plots.final_table(runs, x, last=last)
     scores: dict[str, dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
     for run in runs:
-        scores[run.group][run.fields[x]].append(float(run.eval_G[-last:].mean()))
+        scores[run.group][run.fields[x]].append(final_score(run, last))
     for row in rows:
         scores[row["method"]][_column(row, x)].append(float(row["final_G"]))
     shared = {group: (max([r.g_max for r in runs if r.group == group], default=g_max), group)
@@ -251,7 +251,7 @@ def marl_table(sweeps: list[Path], last: int, ccea: list[plots.Run] = ()) -> Non
         if _budget(run) != 25000:  # the 25,000-episode runs are the default; others say so
             run.group += f", {_budget(run):,} episodes"
         cell = cells[(run.group, run.fields["n_req"])]
-        cell["final"].append(float(run.eval_G[-last:].mean()))
+        cell["final"].append(final_score(run, last))
         cell["episodes"].append(int(run.episodes[-1]))
     for n_req, budget in sorted({(r.fields["n_req"], _budget(r)) for r in runs}):
         subset = [r for r in runs if r.fields["n_req"] == n_req and _budget(r) == budget]
@@ -320,7 +320,7 @@ def main() -> None:
             summary_rows.append(row)
         for run in runs:
             rows = read_metrics(run.path / "metrics.csv")
-            final = float(run.eval_G[-args.last :].mean())
+            final = final_score(run, args.last)
             cell = key(run) if key else tuple(run.fields[f] for f in cell_fields)
             cells[cell].append(final)
             summary_rows.append(

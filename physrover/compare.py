@@ -30,7 +30,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 from physrover.config import ConfigError
-from physrover.curve_data import Run, differing_fields, format_value
+from physrover.curve_data import Run, differing_fields, final_score, format_value
 from physrover.stats import hedges_g, holm, learned_fraction, mean_ci, permutation_test, welch_t
 
 CELL_COLUMNS = ["group", "n", "mean", "ci95_half_width", "min", "max", "learned"]
@@ -38,15 +38,6 @@ COMPARE_COLUMNS = [
     "cell", "A", "B", "n_A", "n_B", "mean_A", "mean_B", "diff", "p_permutation", "p_holm",
     "family_size", "welch_t", "welch_df", "hedges_g", "learn_A", "learn_B",
 ]  # fmt: skip
-
-
-def final_score(run: Run, last: int) -> float:
-    """The run's mean eval G over its last ``last`` generations, of those evaluated (a
-    gradient-based trainer with ``log_every > 1`` evaluates every k-th row only); NaN when
-    none of them is."""
-    recent = run.eval_G[-last:]
-    recent = recent[~np.isnan(recent)]
-    return float(recent.mean()) if len(recent) else math.nan
 
 
 def scored(runs: list[Run], last: int) -> tuple[list[tuple[Run, float]], list[str]]:

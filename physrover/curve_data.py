@@ -13,6 +13,7 @@ of the mean, ``mean +- t_{0.975, n-1} * sd / sqrt(n)``; the tables and the CSV k
 from __future__ import annotations
 
 import csv
+import math
 import re
 from collections import defaultdict
 from dataclasses import dataclass
@@ -57,6 +58,16 @@ class Run:
     def g_max(self) -> float:
         """The largest G possible in this run's domain: the sum of its POI values."""
         return float(sum(self.fields["poi_values"]))
+
+
+def final_score(run: Run, last: int) -> float:
+    """A run's final score: its mean eval G over its last ``last`` generations, of those
+    evaluated (a gradient-based trainer with ``log_every > 1`` evaluates every k-th row
+    only); NaN when none of them is. What ``curves --final``, ``table`` and
+    experiments/make_results.py score a run by."""
+    recent = run.eval_G[-last:]
+    recent = recent[~np.isnan(recent)]
+    return float(recent.mean()) if len(recent) else math.nan
 
 
 def format_value(value) -> str:
@@ -268,7 +279,7 @@ def final_table(runs: list[Run], x: str, last: int = 1) -> Table:
                     f"{group}, {x}={format_value(v)}: {len(lengths)} runs of {lengths[0]} to "
                     f"{lengths[-1]} generations, each scored on its own last {last}"
                 )
-        scores[group] = {v: [float(run.eval_G[-last:].mean()) for run in by_x[v]] for v in by_x}
+        scores[group] = {v: [final_score(run, last) for run in by_x[v]] for v in by_x}
         shared[group] = _shared([run for v in by_x for run in by_x[v]])
     scored = scores_table(x, scores, shared)
     scored.messages[:0] = table.messages
