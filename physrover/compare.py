@@ -18,18 +18,12 @@ from __future__ import annotations
 
 import csv
 import math
-import sys
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
-
-from physrover.config import ConfigError
+from physrover.config import ConfigError, parse_override
 from physrover.curve_data import Run, differing_fields, final_score, format_value
 from physrover.stats import hedges_g, holm, learned_fraction, mean_ci, permutation_test, welch_t
 
@@ -126,11 +120,8 @@ def parse_compare(text: str) -> tuple[str, str, str]:
 
 
 def _as_label(text: str) -> str:
-    try:
-        value = tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-    return format_value(value)
+    """``text`` read as --set reads a value (TOML, else the text) and written as a label."""
+    return format_value(parse_override(f"v={text}")[1])
 
 
 def comparisons(
