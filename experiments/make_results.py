@@ -468,6 +468,9 @@ def main() -> None:
     # (the same commit and machine as the physical runs), else fig4-7-long's; they are
     # listed again under this sweep's name (motion "ideal") so its table compares the three
     # models on equal seeds.
+    def motion_cell(run: plots.Run) -> str:
+        return f"{run.fields['method']} | {run.fields['n_req']} | {motion_label(run)}"
+
     physical = finished_runs("physics-long")
     if physical:
         twins = _twins(physical, finished_runs("physics-long-ideal"), finished_runs("fig4-7-long"))
@@ -476,12 +479,18 @@ def main() -> None:
             run.group = f"{run.fields['method']} {motion_label(run)}"
         curves_and_finals("physics-long", runs, "ideal vs physical motion, 5000 generations",
                           "ideal vs physical motion", smooth=100)  # fmt: skip
-        summarise(
-            "physics-long",
-            runs,
-            ("method", "n_req", "motion"),
-            key=lambda r: f"{r.fields['method']} | {r.fields['n_req']} | {motion_label(r)}",
-        )
+        summarise("physics-long", runs, ("method", "n_req", "motion"), key=motion_cell)
+    # Its third method, the mean critic, run later as a sweep of its own (physics-long's run
+    # directories did not survive their machine): significance.py sets its rows against
+    # physics-long's max critic and fig4-7-long's idealised mean critic.
+    runs = finished_runs("physics-long-mean")
+    if runs:
+        for run in runs:
+            run.group = f"{run.fields['method']} {motion_label(run)}"
+        curves_and_finals("physics-long-mean", runs,
+                          "the mean critic under physical motion, 5000 generations",
+                          "the mean critic under physical motion", smooth=100)  # fmt: skip
+        summarise("physics-long-mean", runs, ("method", "n_req", "motion"), key=motion_cell)
 
     # Issue 13: D++ as the feedback (experiment 1) and random POI layouts (experiment 2).
     runs = finished_runs("dpp")
@@ -530,8 +539,8 @@ def main() -> None:
             name, body = section.split("\n", 1)
             cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
     order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "fig8-9-paper", "physics",
-             "physics-long", "dpp", "ring-random", "stronger-critic", "stronger-critic-ensemble",
-             "ablation-output-weights"]  # fmt: skip
+             "physics-long", "physics-long-mean", "dpp", "ring-random", "stronger-critic",
+             "stronger-critic-ensemble", "ablation-output-weights"]  # fmt: skip
     rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
     with open(OUT / "runs.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))

@@ -93,7 +93,19 @@ COMPARISONS = [
     # max critic's lead over D survives it
     *[
         (10, "physics-long", (f"{m} ({model})", n, 15), (m, n, 15))
-        for m in ("D", "mean-critic", "max-critic")
+        for m in ("D", "max-critic")
+        for model in ("physics", "physics+collisions")
+        for n in (3, 4, 5, 6)
+    ],  # fmt: skip
+    # the mean critic under physics, a later sweep of its own, against fig4-7-long's
+    # idealised mean critic (10 seeds, physrover 0.1.0: the same training, other draws)
+    *[
+        (
+            10,
+            "physics-long-mean",
+            (f"mean-critic ({model})", n, 15),
+            ("fig4-7-long", "mean-critic", n, 15),
+        )
         for model in ("physics", "physics+collisions")
         for n in (3, 4, 5, 6)
     ],  # fmt: skip
@@ -103,7 +115,12 @@ COMPARISONS = [
         for n in (3, 4, 5, 6)
     ],  # fmt: skip
     *[
-        (12, "physics-long", (f"max-critic ({model})", n, 15), (f"mean-critic ({model})", n, 15))
+        (
+            12,
+            "physics-long",
+            (f"max-critic ({model})", n, 15),
+            ("physics-long-mean", f"mean-critic ({model})", n, 15),
+        )
         for model in ("physics", "physics+collisions")
         for n in (3, 4, 5, 6)
     ],  # fmt: skip

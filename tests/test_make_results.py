@@ -213,3 +213,63 @@ def test_rows_written_before_the_provenance_columns_pool(tmp_path, make_results)
     pooled = list(csv.DictReader(open(old / "runs.csv")))
     assert len(pooled) == 8 and {r["code"] for r in pooled} == {""}
     assert {r["seed"] for r in pooled} == {"0", "1"}
+
+
+PHYSICS = """
+[sweep]
+name = "{name}"
+seeds = 2
+[base.domain]
+n_rovers = 15
+n_req = 3
+motion = "physics"
+[base.learn]
+generations = 60
+[grid]
+method = ["{method}"]
+[[variants]]
+collisions = false
+[[variants]]
+collisions = true
+"""
+
+
+def test_the_mean_critic_under_physics_is_set_against_physics_long_on_another_machine(
+    tmp_path, make_results
+):
+    """physics-long-mean, run where physics-long's run directories are not, adds its rows
+    to runs.csv beside physics-long's kept rows, and significance.py compares the max
+    critic of one with the mean critic of the other, per motion model (claim 12)."""
+    first, second = tmp_path / "first", tmp_path / "second"
+    for root, name, method in ((first, "physics-long", "max-critic"),
+                               (second, "physics-long-mean", "mean-critic")):  # fmt: skip
+        path = tmp_path / f"{name}.toml"
+        path.write_text(PHYSICS.format(name=name, method=method))
+        _fake_runs(Sweep.load(path), root / "root", None)
+    make_results(first / "root", first / "results")
+    (second / "results").mkdir(parents=True)
+    for name in ("runs.csv", "cells.md"):
+        (second / "results" / name).write_text((first / "results" / name).read_text())
+    make_results(second / "root", second / "results")
+    rows = list(csv.DictReader(open(second / "results" / "runs.csv")))
+    models = ("physics", "physics", "physics+collisions", "physics+collisions")  # 2 seeds
+    assert [(r["sweep"], r["method"], r["motion"]) for r in rows] == [
+        *[("physics-long", "max-critic", m) for m in models],
+        *[("physics-long-mean", "mean-critic", m) for m in models],
+    ]
+    cells = (second / "results" / "cells.md").read_text()
+    assert "### physics-long-mean" in cells and "| mean-critic | 3 | physics | 2.00 +- " in cells
+    spec = importlib.util.spec_from_file_location(
+        "significance", ROOT / "experiments" / "significance.py"
+    )
+    significance = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(significance)
+    found = significance.compare(significance.load(second / "results" / "runs.csv"))
+    claim = [r for r in found if r["claim"] == 12]
+    assert [(r["sweep"], r["A"], r["B"]) for r in claim] == [
+        ("physics-long vs physics-long-mean", f"max-critic ({m}) n_req=3 rovers=15",
+         f"mean-critic ({m}) n_req=3 rovers=15")
+        for m in ("physics", "physics+collisions")
+    ]  # fmt: skip
+    # finals: seed + 15 / 10 (+ 5 for the max critic), seeds 0 and 1
+    assert [(r["mean_A"], r["mean_B"], r["family_size"]) for r in claim] == [(7.0, 2.0, 2)] * 2
