@@ -320,6 +320,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     sweep = Sweep.load(args.sweep_file)
     specs = sweep.runs(args.root, seeds=_seeds(args.seeds), drop_state=args.drop_state)
+    listed = set()
     if args.skip_listed:
         from physrover.sweep import listed_finished
 
@@ -327,6 +328,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         specs = [spec for spec in specs if spec.name not in listed]
         print(f"sweep {sweep.name}: {len(listed)} runs left out, finished in {args.skip_listed}",
               file=sys.stderr)  # fmt: skip
+    if args.status:
+        from physrover.sweep import status_report
+
+        print("\n".join(status_report(sweep.name, specs, listed=len(listed))))
+        return 0
     if args.dry_run:
         for spec in specs:
             print(spec.out)

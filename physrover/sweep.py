@@ -186,17 +186,46 @@ def _slug(value: Any) -> str:
 
 def run_status(spec: RunSpec) -> str:
     """ "done", "partial" (has a checkpoint or a started directory) or "new"."""
+    return run_progress(spec)[0]
+
+
+def run_progress(spec: RunSpec) -> tuple[str, int, int]:
+    """(:func:`run_status`, the generation of the run's last checkpoint (0 without one),
+    the run's length): a resume starts from that checkpoint, so a run that is training
+    now is reported as far as it has checkpointed."""
     import json
 
     out = Path(spec.out)
+    length = RunConfig.from_toml(spec.config_toml).length
     if not out.exists():
-        return "new"
+        return "new", 0, length
     state = out / "state.json"
-    if state.exists():
-        length = RunConfig.from_toml(spec.config_toml).length
-        done = json.loads(state.read_text())["generation"] >= length
-        return "done" if done else "partial"
-    return "partial"
+    if not state.exists():
+        return "partial", 0, length
+    generation = int(json.loads(state.read_text())["generation"])
+    return ("done" if generation >= length else "partial"), generation, length
+
+
+def status_report(name: str, specs: list[RunSpec], listed: int = 0) -> list[str]:
+    """``physrover sweep FILE --status``: a line per run that is not done (its status and
+    checkpointed generations of its length, then its directory), and a last line counting
+    done, partial and new runs, the share of their generations that is checkpointed, and
+    the ``listed`` runs that ``--skip-listed`` left out."""
+    counts = {"done": 0, "partial": 0, "new": 0}
+    lines, reached, total = [], 0, 0
+    for spec in specs:
+        status, generation, length = run_progress(spec)
+        counts[status] += 1
+        reached, total = reached + min(generation, length), total + length
+        if status != "done":
+            lines.append(f"{status:7s} {generation:>7d}/{length:<7d} {spec.out}")
+    share = 100.0 * reached / total if total else 100.0
+    summary = ", ".join(f"{n} {s}" for s, n in counts.items())
+    summary += f"; {share:.1f}% of their generations checkpointed"
+    if listed:
+        summary += f"; {listed} more listed as finished by --skip-listed"
+    lines.append(f"sweep {name}: {summary}")
+    return lines
 
 
 def run_one(spec: RunSpec) -> tuple[str, float, str | None]:

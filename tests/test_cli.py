@@ -136,6 +136,39 @@ def test_sweep_skips_the_runs_a_results_table_lists_as_finished(tmp_path, capsys
     assert "is not a file" in capsys.readouterr().err
 
 
+def test_sweep_status_counts_what_is_left(tmp_path, capsys):
+    """--status runs nothing: each run not done with its checkpointed generations, then
+    the counts and the share of their generations reached; --skip-listed's runs apart."""
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text("[sweep]\nname = 'x'\nseeds = 2\n[base.learn]\ngenerations = 40\n"
+                     "[grid]\nn_req = [1, 2]\n")  # fmt: skip
+    runs = tmp_path / "x"
+    for name, generation in (("n_req=1_seed=0", 40), ("n_req=2_seed=0", 10)):
+        (runs / name).mkdir(parents=True)
+        (runs / name / "state.json").write_text(f'{{"generation": {generation}}}')
+    (runs / "n_req=1_seed=1").mkdir()  # started, no checkpoint yet
+    args = ["sweep", str(sweep), "--status", "--root", str(tmp_path)]
+    assert main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[:2] for line in lines[:-1]] == [
+        ["partial", "10/40"], ["partial", "0/40"], ["new", "0/40"]
+    ]  # fmt: skip
+    assert [Path(line.split()[-1]).name for line in lines[:-1]] == [
+        "n_req=2_seed=0", "n_req=1_seed=1", "n_req=2_seed=1"
+    ]  # fmt: skip
+    # (40 + 10) of 4 x 40 generations
+    assert lines[-1] == "sweep x: 1 done, 2 partial, 1 new; 31.2% of their generations checkpointed"
+    assert not (runs / "n_req=2_seed=1").exists()  # nothing ran
+    table = tmp_path / "runs.csv"
+    table.write_text("sweep,run,generations\nx,n_req=2_seed=1,40\n")
+    assert main([*args, "--skip-listed", str(table)]) == 0
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last == (
+        "sweep x: 1 done, 2 partial, 0 new; 41.7% of their generations checkpointed; "
+        "1 more listed as finished by --skip-listed"
+    )
+
+
 def test_generation_numbers_agree_across_files(tmp_path):
     out = tmp_path / "run"
     stream = io.StringIO()
