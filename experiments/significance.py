@@ -8,7 +8,10 @@ cells, the means, the difference, the exact two-sided permutation p-value (every
 the seeds; no normality assumed), that p-value adjusted by Holm's method within its family
 (the comparisons one claim makes in one sweep, their number m beside it), Welch's t and its
 degrees of freedom, Hedges' g, and the fraction of seeds that learn at all (final score
-above 0.5) in each cell.
+above 0.5) in each cell. Also ``trend.csv`` and ``trend.md``: for Figs 8-9, whether a
+method's score rises with the team size (Spearman's rho of the seeds' final scores with
+the number of rovers, its permutation p-value and that p adjusted by Holm's method over
+the sweep's trends).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from physrover.compare import (
     markdown_header,
     significance_cells,
 )
+from physrover.stats import spearman_trend
 
 # (claim, sweep, cell A, cell B); a cell is (method, n_req, n_rovers), or (sweep, method,
 # n_req, n_rovers) for a cell of another sweep; a method run as a variant (runs.csv's
@@ -126,6 +130,16 @@ COMPARISONS = [
     ],  # fmt: skip
 ]
 
+TEAM_SIZES = (6, 9, 12, 15)
+TRENDS = [
+    (sweep, method, n_req)
+    for sweep in ("fig8-9-long", "fig8-9-paper")
+    for method in ("average", "mean-critic", "max-critic")
+    for n_req in (4, 6)
+]
+"""Claim 5's "scores rise with the number of rovers": (sweep, method, n_req) whose final
+scores are tested for a trend over :data:`TEAM_SIZES` (a family per sweep)."""
+
 MIN_SEEDS = 2
 """Comparisons of cells with fewer seeds a side are left out: one seed against one has no
 variance to test against (Welch's t is undefined, every permutation p is 1)."""
@@ -191,6 +205,56 @@ def compare(cells: dict) -> list[dict]:
     return rows
 
 
+def trends(cells: dict) -> list[dict]:
+    """A row per :data:`TRENDS` entry whose every team size has :data:`MIN_SEEDS` seeds:
+    the mean final score per size, Spearman's rho of the scores with the size and its
+    permutation p (100,000 orderings, seed 0), Holm-adjusted within the sweep."""
+    rows = []
+    for sweep, method, n_req in TRENDS:
+        samples = [cells.get((sweep, method, n_req, size), []) for size in TEAM_SIZES]
+        if min(len(s) for s in samples) < MIN_SEEDS:
+            continue
+        by_size = list(zip(TEAM_SIZES, samples, strict=True))
+        sizes = np.concatenate([[size] * len(s) for size, s in by_size])
+        rho, p = spearman_trend(sizes, np.concatenate(samples))
+        rows.append(
+            {
+                "claim": 5,
+                "sweep": sweep,
+                "method": method,
+                "n_req": n_req,
+                "n": "/".join(str(len(s)) for s in samples),
+                **{f"mean_{size}": float(np.mean(s)) for size, s in by_size},
+                "rho": rho,
+                "p_permutation": p,
+                "p_holm": np.nan,
+                "family_size": 0,
+            }
+        )
+    holm_families(rows, lambda row: row["sweep"])
+    return rows
+
+
+def write_trends(rows: list[dict], out: Path) -> None:
+    with open(out.with_suffix(".csv"), "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows({k: format_number(v) for k, v in r.items()} for r in rows)
+    means = " | ".join(f"mean, {size} rovers" for size in TEAM_SIZES)
+    lines = [
+        f"| sweep | method | n_req | seeds | {means} | Spearman rho | p (perm.) | p (Holm, m) |",
+        "|" + "---|" * (7 + len(TEAM_SIZES)),
+    ]
+    for r in rows:
+        cells = " | ".join(f"{r[f'mean_{size}']:.2f}" for size in TEAM_SIZES)
+        lines.append(
+            f"| {r['sweep']} | {r['method']} | {r['n_req']} | {r['n']} | {cells} | "
+            f"{format_number(r['rho'])} | {format_number(r['p_permutation'])} | "
+            f"{format_number(r['p_holm'])} ({r['family_size']}) |"
+        )
+    out.with_suffix(".md").write_text("\n".join(lines) + "\n")
+
+
 def write(rows: list[dict], out: Path) -> None:
     with open(out.with_suffix(".csv"), "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -208,9 +272,13 @@ def main() -> None:
     here = Path(__file__).parent / "results"
     parser.add_argument("--runs", type=Path, default=here / "runs.csv")
     args = parser.parse_args()
-    rows = compare(load(args.runs))
+    cells = load(args.runs)
+    rows = compare(cells)
     write(rows, args.runs.with_name("significance"))
     print(f"{len(rows)} comparisons -> {args.runs.with_name('significance.md')}")
+    rows = trends(cells)
+    write_trends(rows, args.runs.with_name("trend"))
+    print(f"{len(rows)} trends over team size -> {args.runs.with_name('trend.md')}")
 
 
 if __name__ == "__main__":

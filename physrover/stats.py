@@ -1,6 +1,6 @@
 """Statistics over seeds (or episodes): Student-t 95% intervals of a mean, the tests of
-significance of the results (permutation test, Welch's t, Hedges' g) and Holm's adjustment
-for a family of them."""
+significance of the results (permutation test, Welch's t, Hedges' g, Spearman's trend) and
+Holm's adjustment for a family of them."""
 
 from __future__ import annotations
 
@@ -65,6 +65,54 @@ def permutation_test(a, b, max_exact: int = 200_000, resamples: int = 100_000, s
     sums = np.array([pooled[rng.permutation(len(pooled))[:n_a]].sum() for _ in range(resamples)])
     diffs = np.abs(sums / n_a - (total - sums) / len(b))
     return float((np.sum(diffs >= observed - tolerance) + 1) / (resamples + 1))
+
+
+def ranks(values) -> np.ndarray:
+    """Ranks 1..n of ``values``, ties given the mean of the ranks they span."""
+    values = np.asarray(values, dtype=float)
+    order = np.argsort(values, kind="stable")
+    ranked = np.empty(len(values))
+    ranked[order] = np.arange(1, len(values) + 1)
+    for value in np.unique(values):  # average the ranks of each tie
+        tied = values == value
+        ranked[tied] = ranked[tied].mean()
+    return ranked
+
+
+def spearman_trend(x, y, max_exact: int = 40_320, resamples: int = 100_000, seed: int = 0):
+    """Spearman's rank correlation rho of ``y`` with ``x`` (e.g. final scores against team
+    size: does the score rise with it?) and its two-sided permutation p-value under the
+    null that ``y`` is exchangeable across the ``x`` values.
+
+    rho is Pearson's correlation of the ranks (ties: mean ranks, :func:`ranks`). The
+    p-value is exact, over every ordering of ``y``, when there are at most ``max_exact``
+    (8! = 40,320); otherwise ``resamples`` random orderings from a generator seeded with
+    ``seed`` (counting the observed one, so never 0). An ordering is extreme when its
+    ``|rho|`` reaches the observed one (relative tolerance 1e-12). ``y`` without spread has
+    no trend to test: rho is NaN and p is 1.
+    """
+    import itertools
+
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if len(x) != len(y) or len(x) < 3:
+        raise ValueError("spearman_trend needs x and y of one length, at least 3")
+    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+        raise ValueError("spearman_trend needs finite values")
+    rx, ry = ranks(x) - (len(x) + 1) / 2, ranks(y) - (len(y) + 1) / 2
+    scale = math.sqrt(float(rx @ rx) * float(ry @ ry))
+    if scale == 0.0:
+        return math.nan, 1.0
+    rho = float(rx @ ry) / scale
+    tolerance = 1e-12 * max(1.0, abs(rho))
+    if math.factorial(len(y)) <= max_exact:
+        orderings = ry[np.array(list(itertools.permutations(range(len(y)))))]
+        return rho, float(np.mean(np.abs(orderings @ rx) / scale >= abs(rho) - tolerance))
+    rng = np.random.default_rng(seed)
+    extreme = 0
+    for start in range(0, resamples, 10_000):
+        batch = rng.permuted(np.tile(ry, (min(10_000, resamples - start), 1)), axis=1)
+        extreme += int(np.sum(np.abs(batch @ rx) / scale >= abs(rho) - tolerance))
+    return rho, (extreme + 1) / (resamples + 1)
 
 
 def welch_t(a, b) -> tuple[float, float]:

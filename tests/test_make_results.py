@@ -5,6 +5,7 @@ runs.csv rows, cells.md table and figure numbers as the whole sweep found on one
 import csv
 import importlib.util
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -45,6 +46,16 @@ def make_results(monkeypatch):
         module.main()
 
     return run
+
+
+@pytest.fixture
+def significance():
+    spec = importlib.util.spec_from_file_location(
+        "significance", ROOT / "experiments" / "significance.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def _final(spec) -> float:
@@ -235,7 +246,7 @@ collisions = true
 
 
 def test_the_mean_critic_under_physics_is_set_against_physics_long_on_another_machine(
-    tmp_path, make_results
+    tmp_path, make_results, significance
 ):
     """physics-long-mean, run where physics-long's run directories are not, adds its rows
     to runs.csv beside physics-long's kept rows, and significance.py compares the max
@@ -259,11 +270,6 @@ def test_the_mean_critic_under_physics_is_set_against_physics_long_on_another_ma
     ]
     cells = (second / "results" / "cells.md").read_text()
     assert "### physics-long-mean" in cells and "| mean-critic | 3 | physics | 2.00 +- " in cells
-    spec = importlib.util.spec_from_file_location(
-        "significance", ROOT / "experiments" / "significance.py"
-    )
-    significance = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(significance)
     found = significance.compare(significance.load(second / "results" / "runs.csv"))
     claim = [r for r in found if r["claim"] == 12]
     assert [(r["sweep"], r["A"], r["B"]) for r in claim] == [
@@ -273,3 +279,32 @@ def test_the_mean_critic_under_physics_is_set_against_physics_long_on_another_ma
     ]  # fmt: skip
     # finals: seed + 15 / 10 (+ 5 for the max critic), seeds 0 and 1
     assert [(r["mean_A"], r["mean_B"], r["family_size"]) for r in claim] == [(7.0, 2.0, 2)] * 2
+
+
+def test_trends_over_team_size(tmp_path, significance):
+    """significance.py's trend table: Spearman's rho of the final scores with the team
+    size per (sweep, method, n_req), Holm over the sweep; cells short of seeds are left out."""
+    cells = {}
+    for size in (6, 9, 12, 15):
+        cells["fig8-9-paper", "max-critic", 4, size] = [size / 3, size / 3 + 0.1]  # rises
+        cells["fig8-9-paper", "average", 4, size] = [0.0, 0.0]  # flat: no trend
+        cells["fig8-9-paper", "mean-critic", 4, size] = [1.0] if size == 15 else [1.0, 2.0]
+    rows = significance.trends(cells)
+    assert [(r["method"], r["n"]) for r in rows] == [
+        ("average", "2/2/2/2"),
+        ("max-critic", "2/2/2/2"),
+    ]
+    flat, rising = rows
+    # centred ranks of the sizes (-3, -3, -1, -1, 1, 1, 3, 3), of the scores -3.5 .. 3.5:
+    # rho = 40 / sqrt(40 * 42), the largest |rho| the tied sizes allow
+    assert flat["p_permutation"] == 1.0 and rising["rho"] == pytest.approx(40 / math.sqrt(1680))
+    # 8 scores, 8! = 40,320 orderings (exact): as extreme are the 2^4 orders within the
+    # pairs of each size, either way round: p = 2 * 16 / 40320; Holm over the two trends
+    assert rising["p_permutation"] == pytest.approx(32 / 40320)
+    assert (rising["p_holm"], rising["family_size"]) == (pytest.approx(64 / 40320), 2)
+    assert rising["mean_6"] == pytest.approx(2.05)
+    significance.write_trends(rows, tmp_path / "trend")
+    assert (
+        "| fig8-9-paper | max-critic | 4 | 2/2/2/2 | 2.05 | 3.05 | 4.05 | 5.05 | 0.976 |"
+        in (tmp_path / "trend.md").read_text()
+    )

@@ -6,7 +6,16 @@ import math
 import numpy as np
 import pytest
 
-from physrover.stats import hedges_g, holm, learned_fraction, mean_ci, permutation_test, welch_t
+from physrover.stats import (
+    hedges_g,
+    holm,
+    learned_fraction,
+    mean_ci,
+    permutation_test,
+    ranks,
+    spearman_trend,
+    welch_t,
+)
 
 
 def test_mean_ci_hand_worked():
@@ -59,3 +68,41 @@ def test_holm_by_hand():
     np.testing.assert_allclose(holm([0.5, 0.6]), [1.0, 1.0])  # capped at 1
     np.testing.assert_allclose(holm([0.0079]), [0.0079])  # a family of one: unchanged
     assert holm([]).shape == (0,)
+
+
+def test_spearman_by_hand():
+    # no ties: d = (-1, 1, -1, 1, 0), rho = 1 - 6 * 4 / (5 * 24) = 0.8; of the 120
+    # orderings, 8 have sum d^2 <= 4 (rho >= 0.8: 1, 4 and 3 with sums 0, 2, 4) and 8
+    # mirror them (rho <= -0.8): p = 16 / 120 (Spearman's tables: P(rho >= 0.8) = 0.067)
+    rho, p = spearman_trend([1, 2, 3, 4, 5], [2, 1, 4, 3, 5])
+    assert rho == pytest.approx(0.8) and p == pytest.approx(16 / 120)
+    # ties: ranks (1.5, 1.5, 3.5, 3.5) and (1, 2.5, 2.5, 4), centred (-1, -1, 1, 1) and
+    # (-1.5, 0, 0, 1.5): rho = 3 / sqrt(4 * 4.5)
+    assert list(ranks([0, 1, 1, 2])) == [1.0, 2.5, 2.5, 4.0]
+    rho, _ = spearman_trend([1, 1, 2, 2], [0, 1, 1, 2])
+    assert rho == pytest.approx(3 / math.sqrt(18))
+    # a score that falls with team size is a trend too (two-sided); no spread: none
+    assert spearman_trend([6, 9, 12], [3.0, 2.0, 1.0]) == (
+        pytest.approx(-1.0),
+        pytest.approx(2 / 6),
+    )
+    assert spearman_trend([6, 9, 12], [0.0, 0.0, 0.0])[1] == 1.0
+
+
+def test_spearman_p_matches_a_plain_enumeration_and_its_sampled_estimate():
+    rng = np.random.default_rng(3)
+    x = np.repeat([6.0, 9.0, 12.0], 2)  # team sizes, 2 seeds each
+    y = np.round(x / 3 + rng.normal(0, 2, 6), 1)
+
+    def rho(y_order):  # Pearson's correlation of mean ranks, written out
+        rx, ry = ranks(x), ranks(y_order)
+        rx, ry = rx - rx.mean(), ry - ry.mean()
+        return (rx * ry).sum() / math.sqrt((rx**2).sum() * (ry**2).sum())
+
+    observed = rho(y)
+    count = sum(abs(rho(np.array(o))) >= abs(observed) - 1e-12 for o in itertools.permutations(y))
+    exact = spearman_trend(x, y)
+    assert exact == (pytest.approx(observed), pytest.approx(count / 720))
+    sampled = spearman_trend(x, y, max_exact=0, resamples=50_000, seed=1)
+    assert sampled[1] == pytest.approx(count / 720, abs=0.01)  # sd of the estimate < 0.0023
+    assert sampled == spearman_trend(x, y, max_exact=0, resamples=50_000, seed=1)  # seeded
