@@ -8,11 +8,12 @@ row per run: its config cell, seed, final score, wall time, the code and CPU tha
 it: :func:`provenance_columns`) and cells.md (the table of
 final mean G +- 95% CI per cell that RESULTS.md quotes). Sweeps missing under ``--root``
 keep their rows of runs.csv and their sections of cells.md, so sweeps can be re-made one
-at a time. ``fig8-9-paper`` (:data:`POOLED`), a final-score sweep run in chunks of seeds
-(``physrover sweep FILE --seeds 0:2``, ``2:4``, ...) on machines that do not keep each other's
-run directories, keeps the rows of its finished runs that are not among the finished runs
-on disk, and its figures and table pool them with the runs found: the committed runs.csv
-is what carries it across machines (with ``--last`` 50, the rows' own). Any other sweep
+at a time. ``fig8-9-paper`` and ``physics-long-mean`` (:data:`POOLED`), final-score sweeps
+run in chunks of seeds (``physrover sweep FILE --seeds 0:2``, ``2:4``, ...) on machines that
+do not keep each other's run directories, keep the rows of their finished runs that are not
+among the finished runs on disk, and their final-score figures and tables pool them with
+the runs found (they draw no learning curves): the committed runs.csv is what carries them
+across machines (with ``--last`` 50, the rows' own). Any other sweep
 found on disk is made from what is there alone: chunking it would drop the other chunks.
 "Final score" of a run is its mean eval G over its last ``--last`` generations; the CI is
 over seeds (Student t).
@@ -161,7 +162,7 @@ def _column(row: dict, field: str):
     return int(value) if field in ("n_req", "n_rovers", "seed") else value
 
 
-POOLED = ("fig8-9-paper",)
+POOLED = ("fig8-9-paper", "physics-long-mean")
 """Final-score sweeps whose committed runs.csv rows are pooled with the runs found (module
 docstring): the ones run in chunks of seeds across machines."""
 POOLED_LAST = 50
@@ -179,17 +180,18 @@ def _kept_finals(rows: list[dict], sweep: str, found: list[plots.Run]) -> list[d
 
 
 def _final_scores(runs: list[plots.Run], rows: list[dict], x: str, last: int,
-                  g_max: float) -> Table:  # fmt: skip
+                  g_max: float, row_group=lambda row: row["method"]) -> Table:  # fmt: skip
     """:func:`plots.final_table` of ``runs`` (grouped by their ``group``, the method in the
-    fig8-9 sweeps) with the final scores of the kept runs.csv ``rows`` pooled in, by method;
-    a group's G max is the largest of its runs found, or ``g_max`` if it has none."""
+    fig8-9 sweeps) with the final scores of the kept runs.csv ``rows`` pooled in, by
+    ``row_group(row)`` (the method); a group's G max is the largest of its runs found, or
+    ``g_max`` if it has none."""
     if not rows:
         return plots.final_table(runs, x, last=last)
     scores: dict[str, dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
     for run in runs:
         scores[run.group][run.fields[x]].append(final_score(run, last))
     for row in rows:
-        scores[row["method"]][_column(row, x)].append(float(row["final_G"]))
+        scores[row_group(row)][_column(row, x)].append(float(row["final_G"]))
     shared = {group: (max([r.g_max for r in runs if r.group == group], default=g_max), group)
               for group in scores}  # fmt: skip
     return scores_table(x, scores, shared)
@@ -353,6 +355,17 @@ def main() -> None:
             cols = " | ".join(str(c) for c in cell) if isinstance(cell, tuple) else cell
             cell_lines.append(f"| {cols} | {float(mean):.2f} +- {float(ci):.2f} | {n} |")
 
+    def pooled_rows(name: str, runs: list[plots.Run]) -> list[dict]:
+        """The committed rows of a :data:`POOLED` sweep's finished runs not found on disk
+        (none for another sweep, or with another ``--last`` than the rows', said so)."""
+        if name not in POOLED:
+            return []
+        if args.last != POOLED_LAST:
+            print(f"{name}: --last {args.last} is not the committed rows' {POOLED_LAST}: "
+                  "only the runs found are used")  # fmt: skip
+            return []
+        return _kept_finals(previous_rows, name, runs)
+
     # fig4-7 (800 generations) and fig4-7-long (the paper's 5000): the same grid.
     for name, prefix, smooth in (("fig4-7", "", 20), ("fig4-7-long", "long_", 100)):
         fig = root / name
@@ -388,12 +401,7 @@ def main() -> None:
         if not runs:
             continue
         gens = max(len(r.eval_G) for r in runs)
-        kept = []
-        if name in POOLED and args.last == POOLED_LAST:
-            kept = _kept_finals(previous_rows, name, runs)
-        elif name in POOLED:
-            print(f"{name}: --last {args.last} is not the committed rows' {POOLED_LAST}: "
-                  "only the runs found are used")  # fmt: skip
+        kept = pooled_rows(name, runs)
         gens = max([gens, *(int(row["generations"]) for row in kept)])
         regroup(runs, ())
         g_max = max(r.g_max for r in runs)
@@ -468,8 +476,9 @@ def main() -> None:
     # (the same commit and machine as the physical runs), else fig4-7-long's; they are
     # listed again under this sweep's name (motion "ideal") so its table compares the three
     # models on equal seeds.
-    def motion_cell(run: plots.Run) -> str:
-        return f"{run.fields['method']} | {run.fields['n_req']} | {motion_label(run)}"
+    def motion_cell(run: plots.Run) -> tuple:
+        """A physical run's cell, as runs.csv's method, n_req and motion columns read."""
+        return run.fields["method"], run.fields["n_req"], motion_label(run)
 
     physical = finished_runs("physics-long")
     if physical:
@@ -483,14 +492,21 @@ def main() -> None:
     # Its third method, the mean critic, run later as a sweep of its own (physics-long's run
     # directories did not survive their machine): significance.py sets its rows against
     # physics-long's max critic and fig4-7-long's idealised mean critic.
+    # It runs in chunks of seeds across machines (POOLED): final scores only.
     runs = finished_runs("physics-long-mean")
     if runs:
         for run in runs:
             run.group = f"{run.fields['method']} {motion_label(run)}"
-        curves_and_finals("physics-long-mean", runs,
-                          "the mean critic under physical motion, 5000 generations",
-                          "the mean critic under physical motion", smooth=100)  # fmt: skip
-        summarise("physics-long-mean", runs, ("method", "n_req", "motion"), key=motion_cell)
+        kept = pooled_rows("physics-long-mean", runs)
+        plots.plot_final(
+            _final_scores(runs, kept, "n_req", args.last, max(r.g_max for r in runs),
+                          row_group=lambda row: f"{row['method']} {row['motion']}"),
+            OUT / "physics-long-mean_final_vs_nreq.png",
+            "n_req",
+            f"the mean critic under physical motion: final score (last {args.last} generations)",
+        )  # fmt: skip
+        summarise("physics-long-mean", runs, ("method", "n_req", "motion"), key=motion_cell,
+                  kept=kept)  # fmt: skip
 
     # Issue 13: D++ as the feedback (experiment 1) and random POI layouts (experiment 2).
     runs = finished_runs("dpp")

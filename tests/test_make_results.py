@@ -249,28 +249,39 @@ def test_the_mean_critic_under_physics_is_set_against_physics_long_on_another_ma
     tmp_path, make_results, significance
 ):
     """physics-long-mean, run where physics-long's run directories are not, adds its rows
-    to runs.csv beside physics-long's kept rows, and significance.py compares the max
-    critic of one with the mean critic of the other, per motion model (claim 12)."""
-    first, second = tmp_path / "first", tmp_path / "second"
-    for root, name, method in ((first, "physics-long", "max-critic"),
-                               (second, "physics-long-mean", "mean-critic")):  # fmt: skip
+    to runs.csv beside physics-long's kept rows, one seed per machine (it is pooled like
+    fig8-9-paper), and significance.py compares the max critic of one with the mean critic
+    of the other, per motion model (claim 12)."""
+    machines = [tmp_path / name for name in ("first", "second", "third")]
+    for root, name, method, seeds in (
+        (machines[0], "physics-long", "max-critic", None),
+        (machines[1], "physics-long-mean", "mean-critic", range(0, 1)),
+        (machines[2], "physics-long-mean", "mean-critic", range(1, 2)),
+    ):
         path = tmp_path / f"{name}.toml"
         path.write_text(PHYSICS.format(name=name, method=method))
-        _fake_runs(Sweep.load(path), root / "root", None)
-    make_results(first / "root", first / "results")
-    (second / "results").mkdir(parents=True)
-    for name in ("runs.csv", "cells.md"):
-        (second / "results" / name).write_text((first / "results" / name).read_text())
-    make_results(second / "root", second / "results")
-    rows = list(csv.DictReader(open(second / "results" / "runs.csv")))
+        _fake_runs(Sweep.load(path), root / "root", seeds)
+    make_results(machines[0] / "root", machines[0] / "results")
+    for before, now in zip(machines[:-1], machines[1:], strict=True):  # the committed files
+        (now / "results").mkdir(parents=True)
+        for name in ("runs.csv", "cells.md"):
+            (now / "results" / name).write_text((before / "results" / name).read_text())
+        make_results(now / "root", now / "results")
+    last = machines[2] / "results"
+    rows = list(csv.DictReader(open(last / "runs.csv")))
     models = ("physics", "physics", "physics+collisions", "physics+collisions")  # 2 seeds
     assert [(r["sweep"], r["method"], r["motion"]) for r in rows] == [
         *[("physics-long", "max-critic", m) for m in models],
         *[("physics-long-mean", "mean-critic", m) for m in models],
     ]
-    cells = (second / "results" / "cells.md").read_text()
+    assert [r["seed"] for r in rows[4:]] == ["0", "1", "0", "1"]
+    cells = (last / "cells.md").read_text()  # seeds 0 and 1: finals 1.5 and 2.5
     assert "### physics-long-mean" in cells and "| mean-critic | 3 | physics | 2.00 +- " in cells
-    found = significance.compare(significance.load(second / "results" / "runs.csv"))
+    figure = list(csv.DictReader(open(last / "physics-long-mean_final_vs_nreq.csv")))
+    assert [(r["group"], float(r["mean"]), int(r["n"])) for r in figure] == [
+        ("mean-critic physics", 2.0, 2), ("mean-critic physics+collisions", 2.0, 2)
+    ]  # fmt: skip
+    found = significance.compare(significance.load(last / "runs.csv"))
     claim = [r for r in found if r["claim"] == 12]
     assert [(r["sweep"], r["A"], r["B"]) for r in claim] == [
         ("physics-long vs physics-long-mean", f"max-critic ({m}) n_req=3 rovers=15",
