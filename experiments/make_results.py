@@ -357,14 +357,17 @@ def main() -> None:
 
     def pooled_rows(name: str, runs: list[plots.Run]) -> list[dict]:
         """The committed rows of a :data:`POOLED` sweep's finished runs not found on disk
-        (none for another sweep, or with another ``--last`` than the rows', said so)."""
-        if name not in POOLED:
-            return []
-        if args.last != POOLED_LAST:
-            print(f"{name}: --last {args.last} is not the committed rows' {POOLED_LAST}: "
-                  "only the runs found are used")  # fmt: skip
-            return []
-        return _kept_finals(previous_rows, name, runs)
+        (none for another sweep)."""
+        return _kept_finals(previous_rows, name, runs) if name in POOLED else []
+
+    def left_as_committed(name: str) -> bool:
+        """Whether a :data:`POOLED` sweep is skipped because ``--last`` is not its committed
+        rows': their finals cannot be pooled with others, nor dropped (said so)."""
+        if name not in POOLED or args.last == POOLED_LAST or not (root / name).exists():
+            return False
+        print(f"{name}: --last {args.last} is not the committed rows' {POOLED_LAST}: its "
+              "rows, table and figures are left as they are")  # fmt: skip
+        return True
 
     # fig4-7 (800 generations) and fig4-7-long (the paper's 5000): the same grid.
     for name, prefix, smooth in (("fig4-7", "", 20), ("fig4-7-long", "long_", 100)):
@@ -394,7 +397,7 @@ def main() -> None:
     # fig8-9 (400 generations), fig8-9-long (2000) and fig8-9-paper (5000): the same grid.
     for name, prefix in (("fig8-9", ""), ("fig8-9-long", "long_"), ("fig8-9-paper", "paper_")):
         fig = root / name
-        if not fig.exists():
+        if not fig.exists() or left_as_committed(name):
             continue
         # finished runs only: their rows are final scores that later machines keep
         runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G) and _finished(r.path)]
@@ -493,7 +496,7 @@ def main() -> None:
     # directories did not survive their machine): significance.py sets its rows against
     # physics-long's max critic and fig4-7-long's idealised mean critic.
     # It runs in chunks of seeds across machines (POOLED): final scores only.
-    runs = finished_runs("physics-long-mean")
+    runs = [] if left_as_committed("physics-long-mean") else finished_runs("physics-long-mean")
     if runs:
         for run in runs:
             run.group = f"{run.fields['method']} {motion_label(run)}"
@@ -545,7 +548,7 @@ def main() -> None:
     if marl_sweeps:
         marl_table(marl_sweeps, args.last, finished_runs("fig4-7-long"))
     if not summary_rows:
-        if (root / "ablation").exists() or marl_sweeps:
+        if (root / "ablation").exists() or marl_sweeps or any(map(left_as_committed, POOLED)):
             return
         raise SystemExit(f"no sweeps found under {root}")
     # Sweeps not present under --root keep their rows and tables from the previous run.

@@ -153,7 +153,8 @@ CLAIMS = {
     7: "(beyond the paper) D++ and the max critic: which helps, and do they combine",
     8: "(beyond the paper) an ensemble of critics, plain or optimistic, vs the paper's critic",
     9: "(ablation) trained hidden-to-output weights vs the paper's fixed ones",
-    10: "(issue 14) physical motion, without and with collisions, vs idealised (same seeds)",
+    10: "(issue 14) physical motion, without and with collisions, vs idealised (same seeds; "
+    "the mean critic: against fig4-7-long's ten seeds)",
     11: "(issue 14) the max critic vs D under physical motion",
     12: "(issue 14) the max critic vs the mean critic under physical motion",
 }
@@ -208,7 +209,9 @@ def compare(cells: dict) -> list[dict]:
 def trends(cells: dict) -> list[dict]:
     """A row per :data:`TRENDS` entry whose every team size has :data:`MIN_SEEDS` seeds:
     the mean final score per size, Spearman's rho of the scores with the size and its
-    permutation p (100,000 orderings, seed 0), Holm-adjusted within the sweep."""
+    permutation p (exact up to 8 scores, else 100,000 orderings seeded 0: smallest p
+    1e-5), Holm-adjusted within the sweep (a method without spread, rho n/a and p 1,
+    counts in its family)."""
     rows = []
     for sweep, method, n_req in TRENDS:
         samples = [cells.get((sweep, method, n_req, size), []) for size in TEAM_SIZES]
@@ -277,8 +280,9 @@ def main() -> None:
     write(rows, args.runs.with_name("significance"))
     print(f"{len(rows)} comparisons -> {args.runs.with_name('significance.md')}")
     rows = trends(cells)
-    write_trends(rows, args.runs.with_name("trend"))
-    print(f"{len(rows)} trends over team size -> {args.runs.with_name('trend.md')}")
+    if rows:
+        write_trends(rows, args.runs.with_name("trend"))
+        print(f"{len(rows)} trends over team size -> {args.runs.with_name('trend.md')}")
 
 
 if __name__ == "__main__":

@@ -186,7 +186,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dry-run", action="store_true", help="list the run directories only")
     p.add_argument("--status", action="store_true",
                    help="run nothing: list the runs not done yet with their checkpointed "
-                        "generations, and count done, partial and new runs")  # fmt: skip
+                        "generations (a trainer's: iterations), and count done, partial and "
+                        "new runs")  # fmt: skip
     p.add_argument(
         "--skip-listed",
         metavar="CSV",

@@ -88,8 +88,8 @@ def spearman_trend(x, y, max_exact: int = 40_320, resamples: int = 100_000, seed
     p-value is exact, over every ordering of ``y``, when there are at most ``max_exact``
     (8! = 40,320); otherwise ``resamples`` random orderings from a generator seeded with
     ``seed`` (counting the observed one, so never 0). An ordering is extreme when its
-    ``|rho|`` reaches the observed one (relative tolerance 1e-12). ``y`` without spread has
-    no trend to test: rho is NaN and p is 1.
+    ``|rho|`` reaches the observed one (relative tolerance 1e-12). ``x`` or ``y`` without
+    spread has no trend to test: rho is NaN and p is 1.
     """
     import itertools
 

@@ -149,8 +149,9 @@ def test_unfinished_kept_rows_are_dropped(tmp_path, make_results):
 
 
 def test_another_last_pools_nothing(tmp_path, make_results, capsys):
-    """Committed final scores average the last 50 generations: with --last 20 they are not
-    pooled with finals of another definition, and the script says so."""
+    """Committed final scores average the last 50 generations: with --last 20 they are
+    neither pooled with finals of another definition nor dropped: the sweep is left as
+    committed, and the script says so."""
     path = tmp_path / "sweep.toml"
     path.write_text(SWEEP)
     sweep = Sweep.load(path)
@@ -161,9 +162,12 @@ def test_another_last_pools_nothing(tmp_path, make_results, capsys):
     for name in ("runs.csv", "cells.md"):
         (second / "results" / name).write_text((first / "results" / name).read_text())
     _fake_runs(sweep, second / "root", range(1, 2))
+    files = [second / "results" / name for name in ("runs.csv", "cells.md")]
+    committed = [f.read_text() for f in files]
     make_results(second / "root", second / "results", last=20)
     assert "not the committed rows' 50" in capsys.readouterr().out
-    assert {row["seed"] for row in _outputs(second / "results")[0]} == {"1"}
+    assert [f.read_text() for f in files] == committed
+    assert not list((second / "results").glob("*.png"))
 
 
 def test_runs_csv_names_the_code_and_cpu_that_trained_each_run(tmp_path, make_results):
