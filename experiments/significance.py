@@ -238,11 +238,16 @@ def trends(cells: dict) -> list[dict]:
     return rows
 
 
-def write_trends(rows: list[dict], out: Path) -> None:
-    with open(out.with_suffix(".csv"), "w", newline="") as f:
+def _write_csv(rows: list[dict], path: Path) -> None:
+    """``rows`` as CSV, their numbers as the tables print them (:func:`format_number`)."""
+    with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows({k: format_number(v) for k, v in r.items()} for r in rows)
+
+
+def write_trends(rows: list[dict], out: Path) -> None:
+    _write_csv(rows, out.with_suffix(".csv"))
     means = " | ".join(f"mean, {size} rovers" for size in TEAM_SIZES)
     lines = [
         f"| sweep | method | n_req | seeds | {means} | Spearman rho | p (perm.) | p (Holm, m) |",
@@ -259,10 +264,7 @@ def write_trends(rows: list[dict], out: Path) -> None:
 
 
 def write(rows: list[dict], out: Path) -> None:
-    with open(out.with_suffix(".csv"), "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows({k: format_number(v) for k, v in r.items()} for r in rows)
+    _write_csv(rows, out.with_suffix(".csv"))
     lines = [markdown_header("claim", "sweep", "A", "B", "n")]
     for r in rows:
         lead = f"| {r['claim']} | {r['sweep']} | {r['A']} | {r['B']} | {r['n']} |"
