@@ -89,10 +89,12 @@ def test_spearman_by_hand():
     assert spearman_trend([6, 9, 12], [0.0, 0.0, 0.0])[1] == 1.0
 
 
-def test_spearman_p_matches_a_plain_enumeration_and_its_sampled_estimate():
-    rng = np.random.default_rng(3)
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("decimals", [1, 0])  # 0: ties in the scores too
+def test_spearman_p_matches_a_plain_enumeration_and_its_sampled_estimate(seed, decimals):
+    rng = np.random.default_rng(seed)
     x = np.repeat([6.0, 9.0, 12.0], 2)  # team sizes, 2 seeds each
-    y = np.round(x / 3 + rng.normal(0, 2, 6), 1)
+    y = np.round(x / 3 + rng.normal(0, 2, 6), decimals)
 
     def rho(y_order):  # Pearson's correlation of mean ranks, written out
         rx, ry = ranks(x), ranks(y_order)
