@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 
 from physrover import plugins
@@ -197,7 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--drop-state",
         action="store_true",
-        help="delete each run's state.npz (~18 MB) when it finishes; it can then not be extended",
+        help="delete each run's checkpoint (state*.npz, ~2 x 18 MB) when it finishes; it can "
+        "then not be extended",
     )
     p.set_defaults(func=cmd_sweep)
 
@@ -234,6 +236,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("physrover: note: PHYSROVER_ENGINE is no longer read; the compiled kernels are "
               "the one implementation (NUMBA_DISABLE_JIT=1 runs them as Python)",
               file=sys.stderr)  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        return _run(args)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning (a resume from the previous checkpoint, other code than the run's) in one
+    line, as errors are, not Python's file:line and source."""
+    print(f"physrover: warning: {message}", file=sys.stderr if file is None else file)
+
+
+def _run(args: argparse.Namespace) -> int:
     try:
         plugins.load_from_environment()
         plugins.load(args.imports)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import json
 import math
 import os
@@ -25,6 +26,8 @@ import re
 import signal
 import tempfile
 import threading
+import warnings
+import zipfile
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
@@ -37,13 +40,16 @@ from physrover.learn.ccea import CCEA, GenerationStats, stats_header
 from physrover.progress import Progress
 from physrover.provenance import PROVENANCE, read_provenance, with_segment
 
-CONFIG, METRICS, STATE_NPZ, STATE_JSON, CHAMPIONS = (
+CONFIG, METRICS, STATE_NPZ, STATE_PREV, STATE_JSON, CHAMPIONS = (
     "config.toml",
     "metrics.csv",
     "state.npz",
+    "state.prev.npz",
     "state.json",
     "champions",
 )
+META_KEY = "__meta__"
+"""state.npz's entry holding the checkpoint's metadata: its JSON text as uint8 bytes."""
 
 
 class RunError(Exception):
@@ -56,48 +62,107 @@ def _umask() -> int:
     return mask
 
 
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Write via a temporary file in the same directory, fsync, then rename over ``path``.
+def _fsync_dir(directory: Path) -> None:
+    """Make the directory's entries (a rename into it) durable; a no-op where a directory
+    cannot be opened (Windows)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
-    The file gets the permissions of a file opened the usual way (0666 less the umask), not
-    mkstemp's private 0600, so colleagues read every file of a run alike.
+
+def _atomic_write(path: Path, data: bytes | str, previous: Path | None = None) -> None:
+    """Replace ``path`` by ``data`` so that a kill at any instant leaves the old file or the
+    new one, whole: written to a temporary file in the same directory, fsynced, renamed over
+    ``path``, and the directory fsynced so the rename itself survives a crash.
+
+    With ``previous``, the current ``path`` is first renamed to ``previous`` (the last good
+    copy, kept until the next write): between the two renames ``path`` is missing and
+    ``previous`` holds it. The file gets the permissions of a file opened the usual way
+    (0666 less the umask), not mkstemp's private 0600, so colleagues read every file of a
+    run alike. An OSError (disk full, ...) removes the temporary file and leaves ``path``
+    as it was.
     """
+    if isinstance(data, str):
+        data = data.encode()
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
     tmp_path = Path(tmp)
     try:
-        os.chmod(tmp_path, 0o666 & ~_umask())
-        write(tmp_path)
-        with open(tmp_path, "rb+") as f:
-            os.fsync(f.fileno())
+        os.fchmod(fd, 0o666 & ~_umask())
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view) :]
+        os.fsync(fd)
+        os.close(fd)
+        fd = -1
+        if previous is not None and path.exists():
+            os.replace(path, previous)
         os.replace(tmp_path, path)
+        _fsync_dir(path.parent)
     finally:
+        if fd >= 0:
+            os.close(fd)
         tmp_path.unlink(missing_ok=True)
 
 
-def save_state(run_dir: Path, ccea: CCEA) -> None:
+def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    return buffer.getvalue()
+
+
+def save_state(run_dir: Path, learner) -> None:
     """Checkpoint a learner (the CCEA, or a gradient-based trainer: anything with
-    ``state()``, ``generation`` and ``champion_genomes()``) into ``run_dir``."""
-    arrays, meta = ccea.state()
-    meta = {**meta, "generation": ccea.generation}
+    ``state()``, ``generation`` and ``champion_genomes()``) into ``run_dir``.
 
-    def write_npz(p: Path) -> None:
-        with open(p, "wb") as f:
-            np.savez(f, **arrays)
-
-    # Both files name the generation; the JSON is written last, so a crash between the two
-    # writes leaves a newer npz beside an older json, which load_state detects.
-    arrays = {**arrays, "generation": np.array(ccea.generation)}
-    _atomic_write(run_dir / STATE_NPZ, write_npz)
-    _atomic_write(run_dir / STATE_JSON, lambda p: p.write_text(json.dumps(meta)))
+    The checkpoint is one file, ``state.npz``, holding the arrays and the metadata (the
+    JSON under ``__meta__``), replaced atomically; the one it replaces is kept as
+    ``state.prev.npz``. The champion snapshot of the generation is written before it and
+    ``state.json`` (a summary: the metadata, read by ``--status`` and the sweeps) after,
+    so a kill at any instant leaves a checkpoint that :func:`load_state` resumes from.
+    An OSError (a full disk) is a :class:`RunError` naming the file; the previous
+    checkpoint stays intact.
+    """
+    arrays, meta = learner.state()
+    generation = int(learner.generation)
+    meta = {**meta, "generation": generation}
+    meta_text = json.dumps(meta)
+    arrays = {
+        **arrays,
+        "generation": np.array(generation),
+        META_KEY: np.frombuffer(meta_text.encode(), dtype=np.uint8),
+    }
     champions = run_dir / CHAMPIONS
-    champions.mkdir(exist_ok=True)
+    target = champions / f"gen_{generation:06d}.npy"
+    try:
+        champions.mkdir(exist_ok=True)
+        buffer = io.BytesIO()
+        np.save(buffer, learner.champion_genomes())
+        _atomic_write(target, buffer.getvalue())
+        target = run_dir / STATE_NPZ
+        _atomic_write(target, _npz_bytes(arrays), previous=run_dir / STATE_PREV)
+    except OSError as exc:
+        raise RunError(f"cannot write the checkpoint of generation {generation}: {target}: "
+                       f"{exc.strerror or exc}; {_intact(run_dir)}") from None  # fmt: skip
+    try:
+        _atomic_write(run_dir / STATE_JSON, meta_text)
+    except OSError as exc:
+        raise RunError(f"{run_dir / STATE_JSON}: {exc.strerror or exc}; the checkpoint of "
+                       f"generation {generation} is saved in {STATE_NPZ}") from None  # fmt: skip
 
-    def write_champions(p: Path) -> None:
-        with open(p, "wb") as f:
-            np.save(f, ccea.champion_genomes())
 
-    _atomic_write(champions / f"gen_{ccea.generation:06d}.npy", write_champions)
+def _intact(run_dir: Path) -> str:
+    """What a failed write leaves to resume from, for its error: the generation state.npz
+    holds now (the new one, where only the directory's fsync failed)."""
+    try:
+        with np.load(run_dir / STATE_NPZ) as data:
+            return f"the checkpoint of generation {int(data['generation'])} is intact"
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+        return "there is no earlier checkpoint"
 
 
 def record_provenance(run_dir: Path, done: int, total: int) -> None:
@@ -108,34 +173,121 @@ def record_provenance(run_dir: Path, done: int, total: int) -> None:
     if done < total:
         segments = with_segment(run_dir, done)
         text = json.dumps({"segments": segments}, indent=1) + "\n"
-        _atomic_write(run_dir / PROVENANCE, lambda p: p.write_text(text))
+        _atomic_write(run_dir / PROVENANCE, text)
 
 
 def drop_state(run_dir: Path) -> int:
-    """Delete a finished run's ``state.npz`` (populations, critics, replay buffers: ~18 MB at
-    paper scale); returns the bytes freed. config, metrics, champions and ``state.json`` stay,
-    so curves, render, evaluate and a sweep's "done" check still work; the run can no
-    longer be resumed or extended."""
-    path = Path(run_dir) / STATE_NPZ
-    size = path.stat().st_size if path.exists() else 0
-    path.unlink(missing_ok=True)
+    """Delete a finished run's checkpoint (``state.npz`` and ``state.prev.npz``: populations,
+    critics, replay buffers, ~18 MB each at paper scale); returns the bytes freed. config,
+    metrics, champions and ``state.json`` stay, so curves, render, evaluate and a sweep's
+    "done" check still work; the run can no longer be resumed or extended."""
+    size = 0
+    for path in (Path(run_dir) / STATE_NPZ, Path(run_dir) / STATE_PREV):
+        with contextlib.suppress(FileNotFoundError):
+            size += path.stat().st_size
+            path.unlink()
     return size
 
 
-def load_state(run_dir: Path, ccea: CCEA) -> None:
-    meta = json.loads((run_dir / STATE_JSON).read_text())
-    if not (run_dir / STATE_NPZ).exists():
+class _Unreadable(Exception):
+    """A checkpoint file that cannot be read whole (truncated, corrupted, inconsistent)."""
+
+
+def _read_checkpoint(path: Path, run_dir: Path) -> tuple[dict[str, np.ndarray], dict]:
+    """(arrays, meta) of one checkpoint file, every array read whole (the zip's CRC checked).
+
+    A checkpoint of physrover 0.4 or earlier has no ``__meta__``: its metadata is
+    ``state.json``, which must name the same generation."""
+    try:
+        with zipfile.ZipFile(path) as archive:  # np.load may stop short of a member's CRC
+            damaged = archive.testzip()
+        if damaged is not None:
+            raise ValueError(f"{damaged} fails its CRC check")
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+        generation = int(arrays.pop("generation"))
+        if META_KEY in arrays:
+            meta = json.loads(arrays.pop(META_KEY).tobytes().decode())
+        else:
+            meta = json.loads((run_dir / STATE_JSON).read_text())
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
+        raise _Unreadable(f"{path} cannot be read ({_reason(exc)})") from None
+    if int(meta.get("generation", -1)) != generation:
+        raise _Unreadable(f"{path} and {STATE_JSON} disagree: an interrupted checkpoint of "
+                          "physrover 0.4 or earlier")  # fmt: skip
+    return arrays, meta
+
+
+def _reason(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    text = str(exc).strip().splitlines()
+    name = type(exc).__name__
+    return f"{name}: {text[0]}" if text else name
+
+
+def load_state(run_dir: Path, learner) -> dict | None:
+    """Restore the run's latest good checkpoint into ``learner`` (the CCEA or a trainer);
+    returns its metadata (``generation``: completed generations), or None for a run that
+    was never checkpointed.
+
+    ``state.npz`` is read first. Where it is missing (a kill between the two renames of
+    :func:`_atomic_write`) or cannot be read, ``state.prev.npz`` is, with a warning when
+    ``state.npz`` was there but unreadable (it is moved aside to ``state.npz.bad``, so the
+    next checkpoint does not push the good one out). Raises :class:`RunError`, in one line
+    naming the file, when no checkpoint can be read, and when the state was dropped.
+    """
+    run_dir = Path(run_dir)
+    current, previous = run_dir / STATE_NPZ, run_dir / STATE_PREV
+    problem = None
+    for path in (current, previous):
+        if not path.exists():
+            continue
+        try:
+            arrays, meta = _read_checkpoint(path, run_dir)
+        except _Unreadable as exc:
+            problem = problem or str(exc)
+            continue
+        genomes = getattr(learner, "genomes", None)
+        if "genomes" in arrays and genomes is not None and arrays["genomes"].shape != genomes.shape:
+            raise RunError(f"{path}: the saved state does not match {run_dir / CONFIG}")
+        if problem is not None:
+            os.replace(current, run_dir / (STATE_NPZ + ".bad"))
+            resumed = f"resuming from {path.name} (generation {meta['generation']})"
+            warnings.warn(f"{problem}; moved it to {STATE_NPZ}.bad, {resumed}", RuntimeWarning,
+                          stacklevel=3)  # fmt: skip
+        learner.load_state(arrays, meta)
+        return meta
+    if problem is not None:
+        raise RunError(f"{problem}; there is no earlier checkpoint to resume from")
+    if (run_dir / STATE_JSON).exists():
+        generation = last_checkpoint(run_dir)
         raise RunError(
-            f"{run_dir}: {STATE_NPZ} was dropped after generation {meta['generation']}; the "
+            f"{run_dir}: {STATE_NPZ} was dropped after generation {generation}; the "
             "run cannot be continued (its curves, champions and videos remain)"
         )
-    with np.load(run_dir / STATE_NPZ) as data:
-        arrays = {k: data[k] for k in data.files}
-    if int(arrays.pop("generation")) != meta["generation"]:
-        raise RunError(f"{run_dir}: {STATE_NPZ} and {STATE_JSON} disagree (interrupted write)")
-    if "genomes" in arrays and arrays["genomes"].shape != ccea.genomes.shape:
-        raise RunError(f"{run_dir}: the saved state does not match {CONFIG}")
-    ccea.load_state(arrays, meta)
+    return None
+
+
+def resume_run(out: Path, learner, header: list[str]) -> list[dict]:
+    """Continue the run in ``out`` where its last good checkpoint left it: restore the
+    learner (:func:`load_state`), keep the metrics rows up to that generation (a kill after
+    the checkpoint left newer ones, and perhaps a torn line), drop the champion snapshots
+    after it (they are written again, identical), bring ``state.json`` in line and remove
+    the temporary files a kill left. A run never checkpointed starts over. Returns the
+    kept rows."""
+    for stale in [*out.glob(".*.tmp"), *(out / CHAMPIONS).glob(".*.tmp")]:
+        stale.unlink()  # a temporary file of _atomic_write that a kill left behind
+    meta = load_state(out, learner)
+    done = 0 if meta is None else int(meta["generation"])
+    rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= done] if meta else []
+    _write_metrics(out / METRICS, rows, header)
+    for generation, path in champion_checkpoints(out).items():
+        if generation > done:
+            path.unlink()
+    if meta is not None and last_checkpoint(out) != done:
+        _atomic_write(out / STATE_JSON, json.dumps(meta))
+    return rows
 
 
 def read_metrics(path: Path) -> list[dict[str, float]]:
@@ -167,15 +319,12 @@ def last_checkpoint(run_dir: Path) -> int | None:
 
 def _write_metrics(path: Path, rows: list[dict], header: list[str] | None = None) -> None:
     header = header or stats_header()
-
-    def write(p: Path) -> None:
-        with open(p, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=header)
-            writer.writeheader()
-            for row in rows:
-                writer.writerow({k: _fmt(row[k]) for k in header})
-
-    _atomic_write(path, write)
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, fieldnames=header)
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: _fmt(row[k]) for k in header})
+    _atomic_write(path, text.getvalue())
 
 
 def _fmt(value: float) -> str:
@@ -190,7 +339,7 @@ def prepare_run_dir(out: Path, config: RunConfig, header: list[str] | None = Non
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise RunError(f"{out} exists and is not empty; use --resume {out} to continue it")
     out.mkdir(parents=True, exist_ok=True)
-    (out / CONFIG).write_text(config.to_toml())
+    _atomic_write(out / CONFIG, config.to_toml())
     _write_metrics(out / METRICS, [], header)
 
 
@@ -275,7 +424,7 @@ def train(
         config = load_run_config(out)
         if generations is not None and generations != config.learn.generations:
             config = config.with_overrides({"generations": generations})
-            (out / CONFIG).write_text(config.to_toml())
+            _atomic_write(out / CONFIG, config.to_toml())
     else:
         if config is None:
             raise ConfigError("config", "a config is needed to start a run")
@@ -295,13 +444,7 @@ def train(
         bar.warm_up("loading compiled kernels" if _kernels_cached()
                     else "compiling kernels, first run only")  # fmt: skip
     ccea = CCEA(config)
-    rows: list[dict] = []
-    if resume and (out / STATE_JSON).exists():
-        load_state(out, ccea)
-        rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= ccea.generation]
-        _write_metrics(out / METRICS, rows)
-    elif resume:
-        _write_metrics(out / METRICS, [])  # started but never checkpointed: start over
+    rows = resume_run(out, ccea, stats_header()) if resume else []
     record_provenance(out, ccea.generation, total)
 
     latest: list[GenerationStats] = []
@@ -430,9 +573,14 @@ def write_rows(
                 row = next_row()
                 done = learner.generation
                 with stop.held():
-                    writer.writerow({k: _fmt(v) for k, v in row.items()})
+                    try:
+                        writer.writerow({k: _fmt(v) for k, v in row.items()})
+                        if done % every == 0 or done == total:
+                            f.flush()
+                    except OSError as exc:  # a full disk: say so, as a checkpoint does
+                        reason = f"{exc.strerror or exc}; {_intact(out)}"
+                        raise RunError(f"cannot write {out / METRICS}: {reason}") from None
                     if done % every == 0 or done == total:
-                        f.flush()
                         save_state(out, learner)
                         saved = done
                 if not math.isnan(row["eval_G"]):
@@ -457,7 +605,7 @@ def write_rows(
             bar.close()
         if log:
             log.close()
-    if not (out / STATE_JSON).exists():
+    if last_checkpoint(out) != learner.generation:  # a finished run resumed: none yet
         save_state(out, learner)
 
 

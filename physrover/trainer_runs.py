@@ -21,15 +21,11 @@ from physrover.learn.ccea import stats_header
 from physrover.progress import Progress
 from physrover.registry import TRAINERS
 from physrover.runs import (
-    METRICS,
-    STATE_JSON,
     TensorBoardLog,
-    _write_metrics,
     load_run_config,
-    load_state,
     prepare_run_dir,
-    read_metrics,
     record_provenance,
+    resume_run,
     write_rows,
 )
 
@@ -67,12 +63,7 @@ def train_trainer(
         prepare_run_dir(out, config, metrics_header())
     spec = TRAINERS[config.learn.method]
     trainer = spec.load()(config.trainer, config.domain)
-    rows: list[dict] = []
-    if resume and (out / STATE_JSON).exists():
-        load_state(out, trainer)
-        rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= trainer.iterations]
-    if resume:
-        _write_metrics(out / METRICS, rows, metrics_header())
+    rows = resume_run(out, trainer, metrics_header()) if resume else []
     record_provenance(out, trainer.iterations, trainer.total_iterations)
     log = TensorBoardLog(out) if tensorboard else None
     total = trainer.total_iterations

@@ -1,5 +1,7 @@
 """Shared test helpers."""
 
+import json
+
 import numpy as np
 
 from physrover.runs import read_metrics
@@ -12,14 +14,32 @@ def comparable_rows(rows):
     ]
 
 
-def assert_same_run(a, b):
-    """Run directories ``a`` and ``b`` hold the same metrics (wall time aside) and, bit for
-    bit, the same state.npz: what an interrupted and resumed run must share with an
-    uninterrupted one."""
+def checkpoint_meta(run_dir):
+    """The metadata a run's state.npz holds, without its wall time."""
+    with np.load(run_dir / "state.npz") as data:
+        meta = json.loads(data["__meta__"].tobytes())
+    meta.pop("wall_seconds")
+    return meta
+
+
+def assert_same_run(a, b, exact_snapshots=False):
+    """Run directories ``a`` and ``b`` hold the same metrics (wall time aside), bit for bit
+    the same state.npz arrays, the same checkpoint metadata (wall time aside) and the same
+    champion snapshots: what an interrupted and resumed run ``b`` must share with an
+    uninterrupted ``a``. A run stopped by a signal, or trained in parts, also checkpointed
+    (and snapshot) the generations it stopped at, so ``a``'s snapshots are among ``b``'s;
+    after kills they are the same (``exact_snapshots``)."""
     assert comparable_rows(read_metrics(a / "metrics.csv")) == comparable_rows(
         read_metrics(b / "metrics.csv")
     )
-    sa, sb = np.load(a / "state.npz"), np.load(b / "state.npz")
-    assert set(sa.files) == set(sb.files)
-    for key in sa.files:
-        np.testing.assert_array_equal(sa[key], sb[key], err_msg=key)
+    with np.load(a / "state.npz") as sa, np.load(b / "state.npz") as sb:
+        assert set(sa.files) == set(sb.files)
+        for key in sa.files:
+            if key != "__meta__":
+                np.testing.assert_array_equal(sa[key], sb[key], err_msg=key)
+    assert checkpoint_meta(a) == checkpoint_meta(b)
+    champions = sorted(p.name for p in (a / "champions").iterdir())
+    found = sorted(p.name for p in (b / "champions").iterdir())
+    assert champions == found if exact_snapshots else set(champions) <= set(found)
+    for name in champions:
+        assert (a / "champions" / name).read_bytes() == (b / "champions" / name).read_bytes()

@@ -166,7 +166,7 @@ def test_drop_state_keeps_what_plots_and_videos_need(tmp_path):
     run_sweep(specs, workers=1, progress=False)
     for spec in specs:
         names = {p.name for p in os.scandir(spec.out)}
-        assert "state.npz" not in names
+        assert "state.npz" not in names and "state.prev.npz" not in names
         assert {"config.toml", "metrics.csv", "state.json", "champions"} <= names
         assert run_status(spec) == "done"
         load_champions(Path(spec.out))
