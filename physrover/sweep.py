@@ -64,7 +64,8 @@ class RunSpec:
     config_toml: str
     out: str
     drop_state: bool = False
-    """Delete the run's state.npz when it finishes (see :func:`physrover.runs.drop_state`)."""
+    """Delete the run's checkpoint (state.npz, state.prev.npz) when it finishes (see
+    :func:`physrover.runs.drop_state`)."""
 
 
 @dataclass(frozen=True)
@@ -123,7 +124,7 @@ class Sweep:
         In the order they run: every cell's first seed, then every cell's second, ... (so a
         sweep stopped part-way has its finished seeds spread evenly over the cells).
         ``seeds``: how many (seeds 0 .. seeds-1) or which (a range); default the file's.
-        ``drop_state``: each run deletes its state.npz when it finishes."""
+        ``drop_state``: each run deletes its checkpoint when it finishes."""
         fields = list(self.grid)
         specs = []
         cells = list(
@@ -388,25 +389,78 @@ def _sigterm_as(action):
         signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
+RAY_RETRIES = 3
+"""How often Ray runs a run again whose node or worker process died (each attempt resumes
+the run from its last checkpoint, on the shared run root)."""
+
+
 def _run_ray(todo, address, record, bar, skipped, workers) -> None:
+    """The runs as Ray tasks, one CPU each. A task whose node dies is run again by Ray (up
+    to :data:`RAY_RETRIES` times) on a node that is alive, where :func:`run_one` resumes it
+    from its last checkpoint: every node must see the run root at the same path. A run Ray
+    gives up on is reported as failed and the others go on."""
+    with _ray_on_loopback() if address == "local" else contextlib.nullcontext():
+        _run_ray_tasks(todo, address, record, bar, skipped, workers)
+
+
+def _run_ray_tasks(todo, address, record, bar, skipped, workers) -> None:
     try:
         import ray
     except ImportError:
         raise ConfigError("--ray", "ray is not installed: pip install 'physrover[ray]'") from None
     started_here = not ray.is_initialized()
+    main_thread = threading.current_thread() is threading.main_thread()
+    handlers = (
+        {n: signal.getsignal(n) for n in (signal.SIGINT, signal.SIGTERM)} if main_thread else {}
+    )
     if started_here:
         _connect_ray(ray, address, workers)
     try:
-        task = ray.remote(num_cpus=1)(run_one)
-        pending = [task.remote(spec) for spec in todo]
+        task = ray.remote(num_cpus=1, max_retries=RAY_RETRIES, retry_exceptions=False)(run_one)
+        names = {task.remote(spec): spec.name for spec in todo}
+        pending = list(names)
         while pending:
             _display(bar, skipped + len(todo) - len(pending), min(workers, len(pending)), 0)
             done, pending = ray.wait(pending, num_returns=1, timeout=1.0)
             for ref in done:
-                record(ray.get(ref))
+                try:
+                    record(ray.get(ref))
+                except ray.exceptions.RayError as error:  # its node died too often
+                    lines = str(error).strip().splitlines()
+                    record((names[ref], 0.0, lines[0] if lines else type(error).__name__))
     finally:
         if started_here:
             ray.shutdown()
+        for number, handler in handlers.items():  # ray.init installs its own SIGTERM handler
+            signal.signal(number, handler)
+
+
+@contextlib.contextmanager
+def _ray_on_loopback():
+    """Inside, a Ray started here (``--ray local``) stays on 127.0.0.1: every server it
+    starts (GCS, raylet, workers, runtime-env agent) binds the loopback address instead of
+    all interfaces, so nothing of a sweep is reachable from the network.
+
+    Ray does so when it is told the machine is not a cluster node: the environment variable
+    ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0`` (Ray's own switch for laptops; its processes
+    read it from the environment they inherit). A user's own value is respected. If ray was
+    imported before, its driver read the variable already, so its constant is set too.
+    Both are restored on exit.
+    """
+    name = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+    before = os.environ.get(name)
+    os.environ.setdefault(name, "0")
+    constants = sys.modules.get("ray._private.ray_constants")
+    flag = getattr(constants, "ENABLE_RAY_CLUSTER", None)
+    if constants is not None and os.environ[name] == "0":
+        constants.ENABLE_RAY_CLUSTER = False
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(name, None)
+        if constants is not None:
+            constants.ENABLE_RAY_CLUSTER = flag
 
 
 RAY_HELP = (

@@ -1,0 +1,300 @@
+"""Sweeps on Ray: a Ray started here keeps to loopback; a real two-node cluster (each node
+in a network namespace this test makes) gives the local pool's results, and a sweep loses
+nothing when a node dies.
+
+The cluster test needs root (``ip netns``), which CI has; elsewhere it skips, saying why.
+Every address it uses is private and lives only inside the namespaces it makes, which it
+removes however it ends.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ipaddress
+import json
+import os
+import re
+import secrets
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from conftest import comparable_rows
+
+from physrover import sweep as sweeps
+from physrover.runs import read_metrics
+from physrover.sweep import Sweep, run_sweep
+
+ray = pytest.importorskip("ray")
+
+
+def _descendants(pid: int) -> set[int]:
+    """``pid`` and every process below it, read from /proc."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError, ValueError, IndexError):
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    found, todo = set(), [pid]
+    while todo:
+        found.add(todo[-1])
+        todo.extend(children.get(todo.pop(), []))
+    return found
+
+
+def _sockets(pids: set[int], netns: str | None = None) -> list[tuple[str, str]]:
+    """(local address, owner) of every TCP and UDP socket of ``pids`` (``ss``)."""
+    command = ["ss", "-tuanpH"]
+    if netns:
+        command = ["ip", "netns", "exec", netns, *command]
+    out = subprocess.run(command, capture_output=True, text=True, check=True).stdout
+    found = []
+    for line in out.splitlines():
+        owners = {int(p) for p in re.findall(r"pid=(\d+)", line)}
+        if owners & pids:
+            local = line.split()[4]
+            found.append((local.rsplit(":", 1)[0].strip("[]"), line.split("users:")[-1]))
+    return found
+
+
+def _is_loopback(address: str) -> bool:
+    address = address.removeprefix("::ffff:").split("%")[0]
+    return address != "*" and ipaddress.ip_address(address).is_loopback
+
+
+@pytest.mark.skipif(shutil.which("ss") is None, reason="needs ss (iproute2) to list sockets")
+def test_ray_started_here_keeps_every_socket_on_loopback():
+    if ray.is_initialized():
+        ray.shutdown()
+    handler = signal.getsignal(signal.SIGTERM)
+    with sweeps._ray_on_loopback():
+        sweeps._connect_ray(ray, "local", 1)
+        try:
+            # A task starts a worker process: its sockets count too.
+            assert ray.get(ray.remote(lambda: os.getpid()).remote()) > 0
+            sockets = _sockets(_descendants(os.getpid()))
+        finally:
+            ray.shutdown()
+            signal.signal(signal.SIGTERM, handler)  # ray.init leaves a handler of its own
+    owners = " ".join(owner for _, owner in sockets)
+    assert "gcs_server" in owners and "raylet" in owners, sockets  # Ray's servers were seen
+    assert [s for s in sockets if not _is_loopback(s[0])] == []
+    assert "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER" not in os.environ  # restored
+
+
+# -- a real two-node cluster ---------------------------------------------------------------
+
+PREFIX = "physrover-test-"
+HEAD_IP, WORKER_IP = "10.231.0.1", "10.231.0.2"  # private, inside the test's namespaces only
+PORT = 6379
+BIN = Path(sys.executable).parent
+
+
+def _ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    return subprocess.run(["ip", *args], capture_output=True, text=True, check=check)
+
+
+def _kill_namespace(name: str) -> None:
+    """Kill every process inside network namespace ``name`` and remove it (its veth end
+    goes with it)."""
+    pids = _ip("netns", "pids", name, check=False).stdout.split()
+    for pid in pids:
+        with contextlib.suppress(ProcessLookupError, ValueError):
+            os.kill(int(pid), signal.SIGKILL)
+    _ip("netns", "del", name, check=False)
+
+
+def _remove_stale_namespaces() -> None:
+    """Namespaces an earlier run of this test left (killed before its own cleanup)."""
+    for line in _ip("netns", "list", check=False).stdout.splitlines():
+        name = line.split()[0] if line.split() else ""
+        if name.startswith(PREFIX):
+            _kill_namespace(name)
+
+
+def _run_names(pids: set[int]) -> list[str]:
+    names = []
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            names.append(Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode())
+    return names
+
+
+class Cluster:
+    """A Ray head in one network namespace and a worker node in another, joined by a veth
+    pair, with token authentication, both seeing the same filesystem (the shared run root
+    a cluster needs)."""
+
+    def __init__(self, root: Path):
+        tag = str(os.getpid())
+        self.head, self.worker = PREFIX + "head-" + tag, PREFIX + "worker-" + tag
+        self.root = root
+        token = root / "ray-token"
+        token.write_text(secrets.token_hex(32))
+        token.chmod(0o600)
+        self.env = {k: v for k, v in os.environ.items()
+                    if not k.startswith("RAY_") and k not in ("PHYSROVER_IMPORT",)}  # fmt: skip
+        self.env.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN_PATH=str(token),
+                        RAY_USAGE_STATS_ENABLED="0")  # fmt: skip
+        self.temp = Path(os.path.realpath("/tmp")) / f"prt{tag}"  # Ray's sockets: short paths
+
+    def start(self) -> None:
+        veth_head, veth_worker = f"prh{os.getpid()}", f"prw{os.getpid()}"
+        for name in (self.head, self.worker):
+            _ip("netns", "add", name)
+        _ip("link", "add", veth_head, "type", "veth", "peer", "name", veth_worker)
+        for name, veth, address in ((self.head, veth_head, HEAD_IP),
+                                    (self.worker, veth_worker, WORKER_IP)):  # fmt: skip
+            _ip("link", "set", veth, "netns", name)
+            _ip("-n", name, "addr", "add", f"{address}/24", "dev", veth)
+            _ip("-n", name, "link", "set", veth, "up")
+            _ip("-n", name, "link", "set", "lo", "up")
+        common = ["--num-cpus=1", "--disable-usage-stats"]
+        self.exec(self.head, str(BIN / "ray"), "start", "--head", f"--node-ip-address={HEAD_IP}",
+                  f"--port={PORT}", "--include-dashboard=false", f"--temp-dir={self.temp}h",
+                  *common)  # fmt: skip
+        worker = [f"--address={HEAD_IP}:{PORT}", f"--node-ip-address={WORKER_IP}"]
+        self.exec(self.worker, str(BIN / "ray"), "start", *worker, f"--temp-dir={self.temp}w",
+                  *common)  # fmt: skip
+
+    def exec(self, namespace: str, *command: str, timeout: float = 120) -> str:
+        done = subprocess.run(["ip", "netns", "exec", namespace, *command], env=self.env,
+                              capture_output=True, text=True, timeout=timeout)  # fmt: skip
+        assert done.returncode == 0, f"{command}: {done.stdout[-2000:]}{done.stderr[-2000:]}"
+        return done.stdout
+
+    def sweep(self, sweep_file: Path, root: Path) -> subprocess.Popen:
+        """``physrover sweep`` with ``--ray HEAD:PORT``, its driver on the head's node."""
+        command = [str(BIN / "physrover"), "sweep", str(sweep_file), "--root", str(root),
+                   "--ray", f"{HEAD_IP}:{PORT}"]  # fmt: skip
+        output = dict(stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        return subprocess.Popen(["ip", "netns", "exec", self.head, *command], env=self.env,
+                                **output)  # fmt: skip
+
+    def worker_pids(self) -> set[int]:
+        return {int(p) for p in _ip("netns", "pids", self.worker, check=False).stdout.split()}
+
+    def stop(self) -> None:
+        for name in (self.head, self.worker):
+            _kill_namespace(name)
+        for suffix in "hw":
+            shutil.rmtree(f"{self.temp}{suffix}", ignore_errors=True)
+
+
+def _netns_reason() -> str | None:
+    """Why this machine cannot make the test's namespaces, or None."""
+    if sys.platform != "linux" or shutil.which("ip") is None:
+        return "needs Linux with iproute2's ip"
+    if os.geteuid() != 0:
+        return "needs root to make network namespaces (ip netns add); CI runs as root"
+    probe = f"{PREFIX}probe-{os.getpid()}"
+    made = _ip("netns", "add", probe, check=False)
+    _ip("netns", "del", probe, check=False)
+    if made.returncode != 0:
+        return f"cannot make a network namespace here: {made.stderr.strip()}"
+    return None
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    _remove_stale_namespaces()
+    made = Cluster(tmp_path_factory.mktemp("cluster"))
+    try:
+        made.start()
+        yield made
+    finally:
+        made.stop()
+
+
+TINY = """
+[sweep]
+name = "NAME"
+seeds = 2
+
+[base.domain]
+n_rovers = 3
+n_req = 1
+steps = 20
+
+[base.learn]
+generations = GENERATIONS
+population = 6
+eval_episodes = 2
+checkpoint_every = 20
+
+[grid]
+method = ["D", "max-critic"]
+"""
+
+
+def _sweep_file(root: Path, name: str, generations: int) -> Path:
+    path = root / f"{name}.toml"
+    path.write_text(TINY.replace("NAME", name).replace("GENERATIONS", str(generations)))
+    return path
+
+
+def _metrics(root: Path) -> dict[str, list]:
+    return {p.name: comparable_rows(read_metrics(p / "metrics.csv"))
+            for p in sorted(root.iterdir()) if p.is_dir()}  # fmt: skip
+
+
+def _pool_reference(path: Path, root: Path) -> dict[str, list]:
+    report = run_sweep(Sweep.load(path).runs(root), workers=2, progress=False)
+    assert not report.failed, report.failed
+    return _metrics(root / Sweep.load(path).name)
+
+
+def _finish(process: subprocess.Popen, timeout: float = 300) -> str:
+    out, _ = process.communicate(timeout=timeout)
+    assert process.returncode == 0, out[-3000:]
+    return out
+
+
+def test_a_two_node_cluster_gives_the_pools_results_and_survives_a_node_dying(cluster, tmp_path):
+    start = time.monotonic()
+    # 1. A small sweep across both nodes: the same metrics as on the local pool.
+    small = _sweep_file(tmp_path, "small", 40)
+    process = cluster.sweep(small, tmp_path / "cluster")
+    ran_on_worker = False
+    while process.poll() is None:
+        ran_on_worker |= any("run_one" in c for c in _run_names(cluster.worker_pids()))
+        time.sleep(0.1)
+    _finish(process)
+    assert ran_on_worker, "no run went to the worker node"
+    expected = _pool_reference(small, tmp_path / "pool")
+    assert _metrics(tmp_path / "cluster" / "small") == expected and len(expected) == 4
+
+    # 2. A longer sweep; the worker node dies (all its processes killed) while it trains a
+    # run that has checkpointed. Ray runs that run again on the head, which resumes it.
+    long = _sweep_file(tmp_path, "long", 600)
+    runs = tmp_path / "cluster" / "long"
+    process = cluster.sweep(long, tmp_path / "cluster")
+    deadline = time.monotonic() + 120
+    while True:
+        assert process.poll() is None and time.monotonic() < deadline, "no run to interrupt"
+        training = any("run_one" in c for c in _run_names(cluster.worker_pids()))
+        checkpointed = len(list(runs.glob("*/state.json"))) if runs.exists() else 0
+        if training and checkpointed >= 2:  # both nodes' runs have a checkpoint
+            break
+        time.sleep(0.05)
+    # What this test started outside its namespaces keeps to loopback meanwhile.
+    outside = _sockets(_descendants(os.getpid()))
+    assert [s for s in outside if not _is_loopback(s[0])] == []
+    for pid in cluster.worker_pids():
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    out = _finish(process)
+    assert "0 failed" in out, out[-2000:]
+    resumed = [p.name for p in runs.iterdir()
+               if any(s["from_generation"] > 0 for s in
+                      json.loads((p / "provenance.json").read_text())["segments"])]  # fmt: skip
+    assert resumed, "no run was resumed from a checkpoint after the node died"
+    assert _metrics(runs) == _pool_reference(long, tmp_path / "pool")
+    print(f"two-node cluster test: {time.monotonic() - start:.0f} s, resumed {resumed}")
