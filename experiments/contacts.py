@@ -28,7 +28,7 @@ import numpy as np
 
 from physrover.config import DomainConfig, parse_override
 from physrover.domain.physics import pair_overlaps as overlaps
-from physrover.envs import RoverVectorEnv
+from physrover.envs.gymnasium_env import RoverVectorEnv
 
 
 def head_on(config: DomainConfig) -> dict:

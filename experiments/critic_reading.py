@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.envs import RoverVectorEnv
+from physrover.envs.gymnasium_env import RoverVectorEnv
+from physrover.experiment.store import load_run_config, load_state
 from physrover.learn.ccea import CCEA
-from physrover.runs import load_run_config, load_state
 
 OUT = Path("experiments/results")
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.compiled import dims
+from physrover.core.compiled import dims
 from physrover.learn.forward import policy_forward
 
 TEAMS, ROVERS, N_IN, HIDDEN = 60, 15, 8, 32

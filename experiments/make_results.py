@@ -29,11 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover import plots
-from physrover.curve_data import Table, final_score, scores_table
-from physrover.evaluate import motion_model
-from physrover.provenance import read_provenance
-from physrover.runs import find_runs, read_metrics
+from physrover.analysis import plots
+from physrover.analysis.curve_data import Table, final_score, scores_table
+from physrover.experiment.evaluate import motion_model
+from physrover.experiment.provenance import read_provenance
+from physrover.experiment.store import find_runs, read_metrics
 
 OUT = Path("experiments/results")
 
@@ -150,7 +150,7 @@ def provenance_columns(run_dir: Path) -> dict[str, str]:
 
 def _finished(run_dir: Path) -> bool:
     """Whether a run (CCEA or trainer) reached the length its config asks for."""
-    from physrover.sweep import RunSpec, run_status
+    from physrover.experiment.sweep import RunSpec, run_status
 
     spec = RunSpec(run_dir.name, (run_dir / "config.toml").read_text(), str(run_dir))
     return run_status(spec) == "done"

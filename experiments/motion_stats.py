@@ -26,9 +26,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from physrover.evaluate import MOTION_MODELS, motion_model, play_champion  # noqa: E402
-from physrover.runs import load_run_config  # noqa: E402
-from physrover.stats import mean_ci  # noqa: E402
+from physrover.core.stats import mean_ci  # noqa: E402
+from physrover.experiment.evaluate import MOTION_MODELS, motion_model, play_champion  # noqa: E402
+from physrover.experiment.store import load_run_config  # noqa: E402
 
 OUT = Path(__file__).parent / "results"
 

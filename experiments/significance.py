@@ -23,14 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.compare import (
+from physrover.analysis.tables import (
     compare_samples,
     format_number,
     holm_families,
     markdown_header,
     significance_cells,
 )
-from physrover.stats import spearman_trend
+from physrover.core.stats import spearman_trend
 
 # (claim, sweep, cell A, cell B); a cell is (method, n_req, n_rovers), or (sweep, method,
 # n_req, n_rovers) for a cell of another sweep; a method run as a variant (runs.csv's

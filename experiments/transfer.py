@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.evaluate import MOTION_MODELS, evaluate_run, motion_model
-from physrover.runs import find_runs, load_run_config
-from physrover.stats import mean_ci
+from physrover.core.stats import mean_ci
+from physrover.experiment.evaluate import MOTION_MODELS, evaluate_run, motion_model
+from physrover.experiment.store import find_runs, load_run_config
 
 OUT = Path(__file__).parent / "results"
 MODELS = MOTION_MODELS

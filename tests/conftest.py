@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from physrover.runs import read_metrics
+from physrover.experiment.store import read_metrics
 
 
 def comparable_rows(rows):

@@ -57,7 +57,7 @@ def _child(work, errors: Path | None = None) -> int:
         try:
             code = work()
         except BaseException as exc:  # noqa: BLE001 (the child reports, the parent judges)
-            from physrover.runs import RunError
+            from physrover.experiment.store import RunError
 
             code = 2 if isinstance(exc, RunError) else 3
             if errors is not None:
@@ -78,7 +78,7 @@ def _inject(generation: int, step: int, mode: str) -> None:
     """Make the ``step``-th I/O call (counting os.write, os.fsync, os.replace) of the
     checkpoint of ``generation`` fail: ``kill`` before it, ``torn`` (os.write: half the
     bytes, then killed), ``enospc`` (raises, the disk is full)."""
-    from physrover import runs
+    from physrover.experiment import loop
 
     count = [None]  # None outside the target checkpoint, else the calls seen so far
 
@@ -98,7 +98,7 @@ def _inject(generation: int, step: int, mode: str) -> None:
 
     for name in STEPS:
         setattr(os, name, fault(name, getattr(os, name)))
-    real_save = runs.save_state
+    real_save = loop.save_state
 
     def save_state(run_dir, learner):
         count[0] = 0 if learner.generation == generation else None
@@ -109,12 +109,12 @@ def _inject(generation: int, step: int, mode: str) -> None:
         if learner.generation == generation and step == 0:  # after the whole checkpoint
             os.kill(os.getpid(), signal.SIGKILL)
 
-    runs.save_state = save_state
+    loop.save_state = save_state  # what the training loop calls
 
 
 def _count_steps(root: Path, generation: int, learner: str) -> dict:
     """The I/O calls of the checkpoint of ``generation``, by name, in order."""
-    from physrover import runs
+    from physrover.experiment import loop, training
 
     seen: list[str] = []
     active = [False]
@@ -128,7 +128,7 @@ def _count_steps(root: Path, generation: int, learner: str) -> dict:
 
         return call
 
-    real_save = runs.save_state
+    real_save = loop.save_state
 
     def save_state(run_dir, learner):
         active[0] = learner.generation == generation
@@ -140,8 +140,8 @@ def _count_steps(root: Path, generation: int, learner: str) -> dict:
     def work():
         for name in STEPS:
             setattr(os, name, spy(name))
-        runs.save_state = save_state
-        runs.train(config(learner), root / "count", progress=False)
+        loop.save_state = save_state  # what the training loop calls
+        training.train(config(learner), root / "count", progress=False)
         print(json.dumps(seen), flush=True)
         return 0
 
@@ -163,9 +163,9 @@ def _count_steps(root: Path, generation: int, learner: str) -> dict:
 
 def last_saved(out: Path, learner: str) -> int | None:
     """The generation of the checkpoint a resume of ``out`` starts from (None: none)."""
+    from physrover.core.registry import TRAINERS
+    from physrover.experiment.store import load_state
     from physrover.learn.ccea import CCEA
-    from physrover.registry import TRAINERS
-    from physrover.runs import load_state
 
     cfg = config(learner)
     if cfg.trainer is None:
@@ -181,10 +181,10 @@ def faults(root: Path, generation: int, learner: str) -> dict:
     the disk full at each call; then resumed to its end. Also the uninterrupted run,
     ``reference``. Everything trains here, in one thread: a trainer's torch sums in
     another order with more threads."""
-    from physrover import runs
+    from physrover.experiment import training
 
     steps = _count_steps(root, generation, learner)
-    reference = _status(_child(lambda: runs.train(config(learner), root / "reference",
+    reference = _status(_child(lambda: training.train(config(learner), root / "reference",
                                                   progress=False) and 0))  # fmt: skip
     assert reference == "exit 0", reference
     scenarios = [("kill", k) for k in range(len(steps) + 1)]  # 0: after the checkpoint
@@ -196,7 +196,7 @@ def faults(root: Path, generation: int, learner: str) -> dict:
 
         def work(mode=mode, step=step, out=out):
             _inject(generation, step, mode)
-            runs.train(config(learner), out, progress=False)
+            training.train(config(learner), out, progress=False)
             return 0
 
         errors = root / f"{mode}-{step}.error"
@@ -204,7 +204,7 @@ def faults(root: Path, generation: int, learner: str) -> dict:
         error = errors.read_text() if errors.exists() else None
         left = len(list(out.rglob(".*.tmp")))  # temporary files the crash left
         saved = last_saved(out, learner)
-        resumed = _status(_child(lambda out=out: runs.train(None, out, resume=True,
+        resumed = _status(_child(lambda out=out: training.train(None, out, resume=True,
                                                             progress=False) and 0))  # fmt: skip
         done.append({"dir": out.name, "mode": mode, "step": step, "status": status,
                      "call": "after the checkpoint" if step == 0 else steps[step - 1],
@@ -216,19 +216,19 @@ def faults(root: Path, generation: int, learner: str) -> dict:
 def kill_loop(out: Path, kills: int, seed: int, generations: int) -> dict:
     """Train a run (checkpointing every generation) to ``generations``, SIGKILLing it at
     random instants and resuming, until ``kills`` kills have landed; then let it finish."""
-    from physrover import runs
+    from physrover.experiment import store, training
 
     rng = random.Random(seed)
     cfg = config().with_overrides({"checkpoint_every": 1})
 
     def work():
-        started = (out / runs.CONFIG).exists()
-        runs.train(None if started else cfg, out, resume=started, generations=generations,
+        started = (out / store.CONFIG).exists()
+        training.train(None if started else cfg, out, resume=started, generations=generations,
                    progress=False)  # fmt: skip
         return 0
 
     def uninterrupted():
-        runs.train(cfg, out.parent / "reference", generations=generations, progress=False)
+        training.train(cfg, out.parent / "reference", generations=generations, progress=False)
         return 0
 
     assert _status(_child(uninterrupted)) == "exit 0"
@@ -239,7 +239,7 @@ def kill_loop(out: Path, kills: int, seed: int, generations: int) -> dict:
         time.sleep(rng.uniform(0.0, 0.12))
         os.kill(pid, signal.SIGKILL)
         if _status(pid) == "SIGKILL":
-            landed.append(runs.last_checkpoint(out))
+            landed.append(store.last_checkpoint(out))
         if lives > 10 * kills:
             raise RuntimeError(f"only {len(landed)} kills landed in {lives} lives")
     last = _status(_child(work))
@@ -251,15 +251,15 @@ def main(argv: list[str]) -> None:
     # One thread: BLAS and numba pools would make forking unsafe; the runs use neither.
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
         os.environ[var] = "1"
-    from physrover import runs
+    from physrover.experiment import training
 
     command, path = argv[0], Path(argv[1])
     path.mkdir(parents=True, exist_ok=True)
     if command == "faults":
-        runs.train(config(argv[3]), path / "warm-up", progress=False)  # compile once
+        training.train(config(argv[3]), path / "warm-up", progress=False)  # compile once
         report = faults(path, int(argv[2]), argv[3])
     else:
-        runs.train(config(), path / "warm-up", generations=1, progress=False)
+        training.train(config(), path / "warm-up", generations=1, progress=False)
         report = kill_loop(path / "run", int(argv[2]), int(argv[3]), int(argv[4]))
     print(json.dumps(report), flush=True)
 

@@ -15,14 +15,14 @@ import pytest
 import torch
 from conftest import assert_same_run
 
-from physrover.cli import main
+from physrover.analysis.plots import load_runs
+from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig, check
-from physrover.evaluate import evaluate_run
+from physrover.experiment.evaluate import evaluate_run
+from physrover.experiment.store import read_metrics
 from physrover.learn.policies import PolicyLayout
 from physrover.marl.common import Trainer, run_episodes
 from physrover.marl.configs import MAPPOConfig, MARLConfig, register_trainer
-from physrover.plots import load_runs
-from physrover.runs import read_metrics
 
 
 @dataclasses.dataclass(frozen=True)

@@ -11,13 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from physrover import commands
-from physrover.cli import build_parser, main
+from physrover.cli import commands
+from physrover.cli.main import build_parser, main
 from physrover.config import ConfigError, RunConfig
+from physrover.core.progress import Progress
+from physrover.core.registry import FITNESS_METHODS, did_you_mean
+from physrover.experiment.store import read_metrics
+from physrover.experiment.training import train
 from physrover.learn.fitness import SingleEpisode, register_method
-from physrover.progress import Progress
-from physrover.registry import FITNESS_METHODS, did_you_mean
-from physrover.runs import read_metrics, train
 
 TINY = ["--set", "n_rovers=3", "--set", "n_req=1", "--set", "population=4",
         "--set", "steps=5", "--set", "eval_episodes=2", "--method", "D"]  # fmt: skip
@@ -311,8 +312,8 @@ def test_bench_train_reports_median_spread_and_phases():
     the mean time of each phase (a format check; no timing is asserted)."""
     import re
 
-    from physrover.bench import bench_train
     from physrover.config import RunConfig
+    from physrover.experiment.bench import bench_train
 
     config = RunConfig().with_overrides(dict(n_rovers=3, n_req=1, population=10, steps=10))
     (line,) = bench_train(config, ["max-critic"], generations=3)

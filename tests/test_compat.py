@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from physrover.config import PhysicsConfig, RunConfig
-from physrover.runs import load_champions, load_run_config, train
+from physrover.experiment.store import load_champions, load_run_config
+from physrover.experiment.training import train
 
 OLD_RUN = Path(__file__).parent / "data" / "run-0.1.0"
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from physrover.config import ConfigError, RunConfig
+from physrover.core.registry import CREDITS
 from physrover.domain.credit import Credit, register_credit
 from physrover.learn.ccea import CCEA
-from physrover.registry import CREDITS
 
 EASY = {"n_rovers": 3, "n_req": 1, "population": 6, "steps": 20, "eval_episodes": 2,
         "poi_ring_radius": 6.0, "method": "D"}  # fmt: skip

@@ -164,7 +164,7 @@ def test_the_options_through_the_env_the_ccea_and_config_errors():
 
 
 def test_the_options_on_the_command_line(capsys):
-    from physrover.cli import main
+    from physrover.cli.main import main
 
     sets = ["feedback=D++", "n_req=[1, 2, 3, 2]", "scored_states=before-steps", "sectors=6",
             "radius=9"]  # fmt: skip

@@ -7,8 +7,8 @@ import numpy as np
 import oracles
 import pytest
 
-from physrover.compiled import dims
 from physrover.config import ConfigError, LearnConfig
+from physrover.core.compiled import dims
 from physrover.learn.critics import (
     CriticSettings,
     FitnessCritic,

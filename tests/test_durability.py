@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 from conftest import assert_same_run
 
-from physrover.cli import main
+from physrover.cli.main import main
+from physrover.experiment.store import RunError, last_checkpoint, load_state, read_metrics
+from physrover.experiment.training import train
 from physrover.learn.ccea import CCEA
-from physrover.runs import RunError, last_checkpoint, load_state, read_metrics, train
 
 HERE = Path(__file__).parent
 pytestmark = pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")

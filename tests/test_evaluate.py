@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from physrover import RoverEnv
-from physrover.cli import main
+from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig
-from physrover.evaluate import evaluate_run
+from physrover.experiment.evaluate import evaluate_run
+from physrover.experiment.store import load_champions
+from physrover.experiment.training import train
 from physrover.learn.policies import PolicyLayout
-from physrover.runs import load_champions, train
 
 
 @pytest.fixture(scope="module")
@@ -81,8 +82,8 @@ def test_a_checkpoint_replays_the_runs_own_next_eval_G(tmp_path, motion):
     import json
 
     from physrover import RoverVectorEnv
-    from physrover.envs import generator_from_state
-    from physrover.runs import read_metrics
+    from physrover.envs.gymnasium_env import generator_from_state
+    from physrover.experiment.store import read_metrics
 
     config = RunConfig().with_overrides(
         {
@@ -119,7 +120,7 @@ def test_a_checkpoint_replays_the_runs_own_next_eval_G(tmp_path, motion):
 
 
 def test_motion_model_names_each_of_the_three_models():
-    from physrover.evaluate import MOTION_MODELS, motion_model
+    from physrover.experiment.evaluate import MOTION_MODELS, motion_model
 
     for name, changes in MOTION_MODELS.items():
         assert motion_model(changes["motion"], changes.get("collisions", True)) == name

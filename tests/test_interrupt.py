@@ -12,10 +12,13 @@ import time
 import pytest
 from conftest import assert_same_run
 
-from physrover import runs
 from physrover.config import RunConfig
-from physrover.runs import StopRequests, read_metrics, train
-from physrover.sweep import RunSpec, run_one
+from physrover.experiment import stops
+from physrover.experiment.execute import run_one
+from physrover.experiment.stops import StopRequests
+from physrover.experiment.store import read_metrics
+from physrover.experiment.sweep import RunSpec
+from physrover.experiment.training import train
 
 EASY = dict(n_rovers=3, n_req=1, population=10, steps=20, method="max-critic",
             checkpoint_every=100, eval_episodes=2)  # fmt: skip
@@ -164,7 +167,7 @@ def test_an_interrupt_at_once_waits_for_the_writing_in_hand():
 
 def test_a_sweep_worker_stops_on_the_event_and_now_on_sigusr1(monkeypatch, tmp_path):
     event = threading.Event()
-    monkeypatch.setattr(runs, "_stop_event", event)
+    monkeypatch.setattr(stops, "_stop_event", event)
     with StopRequests() as stop:
         assert stop.requested is None
         event.set()

@@ -1,37 +1,48 @@
-"""The package's layers: nothing imports from a layer above it, and no module-level cycles.
+"""The package's wings: each imports only from the wings its docstring allows (lower ones),
+no import cycle anywhere (inside functions too), a tree a reader can take in.
 
 Read from the source (every ``import physrover...`` / ``from physrover... import``, also
 inside functions), so a new upward import fails here, not in a reader's head.
 """
 
 import ast
+import importlib
+import warnings
 from pathlib import Path
+
+import pytest
 
 import physrover
 
 ROOT = Path(physrover.__file__).parent
 
-# Lowest first. A module may import from its own layer or below.
-LAYERS = [
-    {"registry", "compiled", "stats", "threads", "config", "progress", "provenance", "plugins"},
-    {"domain"},  # the rover domain: state, kernels, physics, world
-    {"render", "video"},  # frames and videos of the domain (the envs' render_mode)
-    {"envs"},  # gymnasium envs over the world
-    {"learn", "marl"},  # learners and MARL interfaces over the envs
-    # run directories (the CCEA's and the gradient-based trainers') and what reads them
-    {"runs", "trainer_runs", "evaluate", "curve_data", "plots", "compare"},
-    {"playback", "sweep", "bench"},
-    {"cli", "commands"},
-]
-PACKAGE_INIT = "__init__"  # the package's __init__ registers and re-exports: any layer
-
-
-def _layer(module: str) -> int:
-    top = module.split(".")[0]
-    for level, names in enumerate(LAYERS):
-        if top in names:
-            return level
-    raise AssertionError(f"physrover.{module} is in no layer: add it to LAYERS")
+# Lowest first; each wing may import itself and the wings listed for it (DESIGN.md).
+WINGS = ["core", "config", "domain", "viz", "envs", "learn", "marl", "experiment", "analysis",
+         "cli"]  # fmt: skip
+ALLOWED = {
+    "core": {"core"},
+    "config": {"config", "core"},
+    "domain": {"domain", "config", "core"},
+    "viz": {"viz", "domain", "config", "core"},
+    "envs": {"envs", "viz", "domain", "config", "core"},
+    "learn": {"learn", "envs", "domain", "config", "core"},
+    "marl": {"marl", "learn", "envs", "domain", "config", "core"},
+    "experiment": {"experiment", "marl", "learn", "envs", "viz", "domain", "config", "core"},
+    "analysis": {
+        "analysis",
+        "experiment",
+        "marl",
+        "learn",
+        "envs",
+        "viz",
+        "domain",
+        "config",
+        "core",
+    },  # fmt: skip
+    "cli": set(WINGS),
+}
+MAX_LINES = 400
+MAX_LOOSE = 3  # modules at the package's top beside the wings (now: __init__ only)
 
 
 def _imports() -> dict[str, set[tuple[str, bool]]]:
@@ -53,30 +64,43 @@ def _imports() -> dict[str, set[tuple[str, bool]]]:
                 if target == "physrover" or target.startswith("physrover."):
                     inner = target[len("physrover.") :] if "." in target else ""
                     if isinstance(node, ast.ImportFrom) and not inner:
-                        inner = node.names[0].name  # from physrover import plots
+                        inner = node.names[0].name  # from physrover import __version__
                     out.add((inner, id(node) in top_level))
         found[name] = out
     return found
 
 
-def test_no_module_imports_from_a_layer_above_it():
+def _wing(module: str) -> str:
+    wing = module.split(".")[0]
+    assert wing in ALLOWED, f"physrover.{module} is in no wing: add its folder to WINGS"
+    return wing
+
+
+def test_each_wing_imports_only_the_wings_below_it():
     upward = []
     for module, targets in _imports().items():
-        if module.split(".")[-1] == PACKAGE_INIT and module.count(".") == 0:
+        if module == "__init__":  # the package's public surface re-exports every wing
             continue
         for target, _ in targets:
-            if not target or target.split(".")[0] in ("__version__",):
+            if target in ("", "__version__"):
                 continue
-            if _layer(target) > _layer(module):
+            if _wing(target) not in ALLOWED[_wing(module)]:
                 upward.append(f"physrover.{module} imports physrover.{target}")
     assert not upward, "\n".join(upward)
 
 
-def test_no_import_cycles_at_module_level():
+def test_the_allowed_imports_only_go_down():
+    for wing, allowed in ALLOWED.items():
+        assert all(WINGS.index(other) <= WINGS.index(wing) for other in allowed), wing
+
+
+def test_no_import_cycle_anywhere():
+    """Also through imports inside functions (physrover 0.4's runs and trainer_runs imported
+    each other); a package's __init__ (re-exports, lazy attributes) is left out."""
     graph = {
-        module: {t for t, top in targets if top and t}
+        module: {t for t, _ in targets if t}
         for module, targets in _imports().items()
-        if not module.endswith(PACKAGE_INIT)
+        if not module.endswith("__init__")
     }
     modules = set(graph)
 
@@ -88,7 +112,7 @@ def test_no_import_cycles_at_module_level():
     def visit(node, path):
         state[node] = 1
         for nxt in map(resolve, graph.get(node, ())):
-            if nxt not in modules:
+            if nxt not in modules or nxt == node:
                 continue
             if state.get(nxt) == 1:
                 raise AssertionError("import cycle: " + " -> ".join([*path, nxt]))
@@ -101,16 +125,57 @@ def test_no_import_cycles_at_module_level():
             visit(module, [module])
 
 
-def test_layers_cover_every_module():
-    for module in _imports():
-        if module.split(".")[-1] != PACKAGE_INIT:
-            _layer(module)
+def test_the_tree_reads_from_the_door():
+    """Wings as folders, each saying what it owns and may import; few loose modules; no
+    module too long to read."""
+    loose = sorted(p.name for p in ROOT.glob("*.py"))
+    assert len(loose) <= MAX_LOOSE, loose
+    folders = sorted(p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file())
+    assert folders == sorted(WINGS)
+    for wing in WINGS:
+        doc = ast.get_docstring(ast.parse((ROOT / wing / "__init__.py").read_text()))
+        assert doc and "May import" in doc, f"physrover/{wing}/__init__.py"
+    long = {str(p.relative_to(ROOT)): n for p in ROOT.rglob("*.py")
+            if (n := len(p.read_text().splitlines())) > MAX_LINES}  # fmt: skip
+    assert not long, long
+
+
+def test_the_public_surface():
+    for name in physrover.__all__:
+        assert getattr(physrover, name) is not None, name
+    assert physrover.RoverEnv.__module__ == "physrover.envs.gymnasium_env"
+
+
+@pytest.mark.parametrize(
+    "old, name, new",
+    [
+        ("physrover.runs", "train", "physrover.experiment.training"),
+        ("physrover.runs", "read_metrics", "physrover.experiment.store"),
+        ("physrover.render", "VideoWriter", "physrover.viz.video"),
+        ("physrover.render", "RenderConfig", "physrover.viz.render"),
+        ("physrover.sweep", "run_sweep", "physrover.experiment.execute"),
+        ("physrover.stats", "mean_ci", "physrover.core.stats"),
+        ("physrover.marl.parallel_env", "parallel_env", "physrover.envs.pettingzoo_env"),
+    ],
+)
+def test_an_old_module_path_still_imports_with_a_deprecation_warning(old, name, new):
+    import sys
+
+    sys.modules.pop(old, None)
+    with pytest.warns(DeprecationWarning, match=f"{old} is now .*{new}"):
+        module = importlib.import_module(old)
+    assert getattr(module, name) is getattr(importlib.import_module(new), name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        exec(f"from {old} import {name}", {})  # imported once: no second warning
+    with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
+        module.nothing  # noqa: B018
 
 
 def test_the_kernel_cache_is_keyed_by_every_source_file(tmp_path, monkeypatch):
     """numba checks only a kernel's own file against its cache: a change anywhere in the
-    package must move the cache to a new directory (physrover.compiled)."""
-    from physrover import compiled
+    package must move the cache to a new directory (physrover.core.compiled)."""
+    from physrover.core import compiled
 
     (tmp_path / "a.py").write_text("x = 1\n")
     (tmp_path / "sub").mkdir()

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 from conftest import assert_same_run, comparable_rows
 
-from physrover.cli import main
+from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig
+from physrover.experiment.store import read_metrics
+from physrover.experiment.training import train
 from physrover.learn.ccea import CCEA
-from physrover.runs import read_metrics, train
 
 EASY = dict(n_rovers=3, n_req=1, population=20, steps=50)
 

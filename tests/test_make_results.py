@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from physrover.config import RunConfig
-from physrover.sweep import Sweep
+from physrover.experiment.sweep import Sweep
 
 ROOT = Path(__file__).parents[1]
 

@@ -12,12 +12,12 @@ import torch
 from torch import nn
 
 from physrover.config import ConfigError, DomainConfig
-from physrover.envs import RoverVectorEnv
+from physrover.core.threads import pin_threads
+from physrover.envs.gymnasium_env import RoverVectorEnv
 from physrover.learn.policies import PolicyLayout
 from physrover.marl.common import gae, run_episodes, soft_update
 from physrover.marl.maddpg import MADDPG, MADDPGConfig, ReplayBuffer, clip_per_rover, stacked_mlp
 from physrover.marl.mappo import MAPPO, MAPPOConfig
-from physrover.threads import pin_threads
 
 pin_threads(1)
 

@@ -11,8 +11,8 @@ from physrover import RoverEnv
 from physrover.config import ConfigError, DomainConfig
 from physrover.domain.obstacles import box_corners, capsules
 from physrover.domain.world import RoverWorld, StartOverrides
-from physrover.playback import world_state
-from physrover.render import RenderConfig, Transform
+from physrover.experiment.playback import world_state
+from physrover.viz.render import RenderConfig, Transform
 
 BOX = [0.0, 0.0, 1.5, 0.8, 0.3]  # centred at the origin, 3 x 1.6, turned 0.3 rad
 SEGMENT = [0.0, -2.0, 0.5, 2.0, 0.2]  # a slanted wall, 0.4 thick

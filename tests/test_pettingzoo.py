@@ -8,8 +8,8 @@ import pytest
 
 from physrover import RoverEnv
 from physrover.config import ConfigError, DomainConfig
-from physrover.marl import parallel_env
-from physrover.marl.parallel_env import MISSING_PETTINGZOO
+from physrover.envs import parallel_env
+from physrover.envs.pettingzoo_env import MISSING_PETTINGZOO
 
 SMALL = {"n_rovers": 3, "n_req": 2, "steps": 10}
 # Rovers 0 and 1 on the first POI (15, 0), rover 2 at the origin: the POI is captured at

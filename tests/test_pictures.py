@@ -9,9 +9,9 @@ import pytest
 
 from physrover import RoverEnv
 from physrover.config import ConfigError, DomainConfig, LearnConfig, RunConfig
+from physrover.experiment.playback import DIVIDER_PX, record_run
 from physrover.learn.policies import PolicyLayout
-from physrover.playback import DIVIDER_PX, record_run
-from physrover.render import (
+from physrover.viz.render import (
     PALETTE_RGB,
     POI_CAPTURED,
     POI_FREE,

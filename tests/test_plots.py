@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from physrover import plots
+from physrover.analysis import plots
+from physrover.analysis.plots import curve_table, final_table, load_runs, mean_ci, t975, write_csv
 from physrover.config import ConfigError, RunConfig
+from physrover.experiment.store import prepare_run_dir
 from physrover.learn.ccea import stats_header
-from physrover.plots import curve_table, final_table, load_runs, mean_ci, t975, write_csv
-from physrover.runs import prepare_run_dir
 
 
 def test_t_quantiles():
@@ -268,7 +268,7 @@ def test_final_numbers_by_field(tmp_path, figures):
 
 
 def test_a_method_keeps_its_colour_across_figures():
-    from physrover.registry import FITNESS_METHODS as METHODS
+    from physrover.core.registry import FITNESS_METHODS as METHODS
 
     assert set(plots.METHOD_COLOURS) == set(METHODS)
     assert len(set(plots.METHOD_COLOURS.values())) == len(METHODS)
@@ -331,7 +331,7 @@ def test_a_just_started_gradient_based_run_loads_with_no_rows(tmp_path):
 def test_runs_are_grouped_by_the_fields_of_every_table(tmp_path):
     # Runs that differ in a [physics] field and in the scenario's kind are grouped by them.
     from physrover.config import RunConfig
-    from physrover.runs import prepare_run_dir
+    from physrover.experiment.store import prepare_run_dir
 
     dirs = []
     for name, overrides in (("a", {"collisions": False}), ("b", {"scenario": "ring-random"})):
@@ -353,7 +353,7 @@ def test_runs_are_grouped_by_the_fields_of_every_table(tmp_path):
 def test_runs_differing_in_the_physical_integrator_are_kept_apart(tmp_path):
     # "compiled" changes trajectories with walls or obstacles, so the integrator is an
     # experiment field like any other, not bookkeeping.
-    from physrover.runs import prepare_run_dir
+    from physrover.experiment.store import prepare_run_dir
 
     dirs = []
     for integrator in ("auto", "compiled"):
@@ -367,7 +367,7 @@ def test_runs_differing_in_the_physical_integrator_are_kept_apart(tmp_path):
 
 
 def test_a_trainers_seed_and_bookkeeping_do_not_split_groups():
-    from physrover.curve_data import differing_fields
+    from physrover.analysis.curve_data import differing_fields
 
     fields = [
         {"method": "maddpg", "n_req": 1, "maddpg.seed": 0, "maddpg.checkpoint_every": 100,

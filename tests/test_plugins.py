@@ -1,5 +1,5 @@
 """A researcher's own parts reach the command line: ``physrover --import``, a sweep's
-``[sweep] imports`` and ``PHYSROVER_IMPORT`` (physrover.plugins)."""
+``[sweep] imports`` and ``PHYSROVER_IMPORT`` (physrover.core.plugins)."""
 
 import json
 import multiprocessing
@@ -11,12 +11,13 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from physrover import plugins
-from physrover.cli import main
+from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig
-from physrover.registry import CREDITS, SCENARIOS
-from physrover.runs import train
-from physrover.sweep import RunSpec, Sweep, run_one
+from physrover.core import plugins
+from physrover.core.registry import CREDITS, SCENARIOS
+from physrover.experiment.execute import run_one
+from physrover.experiment.sweep import RunSpec, Sweep
+from physrover.experiment.training import train
 
 # A scenario (the ring's rovers, POIs on a line) and a credit (G for every rover), in a file
 # of their own; NAME makes the registered names unique to each test that writes one.

@@ -3,32 +3,36 @@
 import json
 import shutil
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import physrover
-from physrover import provenance
-from physrover.compiled import source_digest
 from physrover.config import RunConfig
-from physrover.provenance import PACKAGE_DIR, code_fingerprint, read_provenance
-from physrover.runs import record_provenance, train
+from physrover.core.compiled import source_digest
+from physrover.experiment import provenance
+from physrover.experiment.provenance import PACKAGE_DIR, code_fingerprint, read_provenance
+from physrover.experiment.store import record_provenance
+from physrover.experiment.training import train
 
 EASY = dict(n_rovers=3, n_req=1, population=20, steps=50, method="D", checkpoint_every=3)
 
 
 def test_fingerprint_is_the_sources_not_the_place(tmp_path):
+    assert PACKAGE_DIR == Path(physrover.__file__).resolve().parent  # every wing, not one
     copy = tmp_path / "copy" / "physrover"
     shutil.copytree(PACKAGE_DIR, copy, ignore=shutil.ignore_patterns("__pycache__"))
     assert source_digest(copy) == code_fingerprint()
-    (copy / "compiled.py").write_text((copy / "compiled.py").read_text() + "\n# edited\n")
+    kernel_cache = copy / "core" / "compiled.py"
+    kernel_cache.write_text(kernel_cache.read_text() + "\n# edited\n")
     assert source_digest(copy) != code_fingerprint()
-    (copy / "compiled.py").write_text((PACKAGE_DIR / "compiled.py").read_text())
+    kernel_cache.write_text((PACKAGE_DIR / "core" / "compiled.py").read_text())
     assert source_digest(copy) == code_fingerprint()
     (copy / ".#lock.py").symlink_to(copy / "gone")  # an editor's dangling lock: skipped
     (copy / "notes.txt").write_text("not a source")
     assert source_digest(copy) == code_fingerprint()
-    (copy / "compiled.py").rename(copy / "compiled2.py")  # same bytes, other file: other code
+    kernel_cache.rename(copy / "core" / "compiled2.py")  # same bytes, other file: other code
     assert source_digest(copy) != code_fingerprint()
     assert source_digest(tmp_path / "copy" / "empty") == ""  # no sources: no fingerprint
 

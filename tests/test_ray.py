@@ -25,9 +25,10 @@ from pathlib import Path
 import pytest
 from conftest import comparable_rows
 
-from physrover import sweep as sweeps
-from physrover.runs import read_metrics
-from physrover.sweep import Sweep, run_sweep
+from physrover.experiment import execute
+from physrover.experiment.execute import run_sweep
+from physrover.experiment.store import read_metrics
+from physrover.experiment.sweep import Sweep
 
 ray = pytest.importorskip("ray")
 
@@ -71,8 +72,8 @@ def test_ray_started_here_keeps_every_socket_on_loopback():
     if ray.is_initialized():
         ray.shutdown()
     handler = signal.getsignal(signal.SIGTERM)
-    with sweeps._ray_on_loopback():
-        sweeps._connect_ray(ray, "local", 1)
+    with execute._ray_on_loopback():
+        execute._connect_ray(ray, "local", 1)
         try:
             # A task starts a worker process: its sockets count too.
             assert ray.get(ray.remote(lambda: os.getpid()).remote()) > 0

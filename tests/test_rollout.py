@@ -12,12 +12,12 @@ import pytest
 
 from physrover import RoverVectorEnv
 from physrover.config import DomainConfig, RunConfig
+from physrover.core.registry import FITNESS_METHODS
 from physrover.domain.world import RoverWorld
 from physrover.learn.ccea import CCEA
 from physrover.learn.forward import policy_forward, tanh32
 from physrover.learn.policies import PolicyLayout
 from physrover.learn.rollout import TeamPolicy, play_episode
-from physrover.registry import FITNESS_METHODS
 
 RECORDS = ("observations", "actions", "position_history")
 

@@ -127,7 +127,7 @@ def test_the_ccea_shares_a_generation_start_and_evaluates_on_fresh_ones():
 
 
 def test_scenarios_through_the_env_and_the_command_line(capsys):
-    from physrover.cli import main
+    from physrover.cli.main import main
 
     check_env(RoverEnv(scenario="ring-random", redraw="generation"), skip_render_check=True)
     check_env(RoverEnv(scenario="uniform", min_separation=3.0), skip_render_check=True)

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from physrover.stats import (
+from physrover.core.stats import (
     hedges_g,
     holm,
     learned_fraction,

@@ -7,8 +7,10 @@ import pytest
 from conftest import comparable_rows
 
 from physrover.config import ConfigError
-from physrover.runs import read_metrics, train
-from physrover.sweep import Sweep, parse_seeds, run_status, run_sweep
+from physrover.experiment.execute import run_sweep
+from physrover.experiment.store import read_metrics
+from physrover.experiment.sweep import Sweep, parse_seeds, run_status
+from physrover.experiment.training import train
 
 SWEEP = """
 [sweep]
@@ -160,7 +162,7 @@ collisions = false
 
 
 def test_drop_state_keeps_what_plots_and_videos_need(tmp_path):
-    from physrover.runs import RunError, load_champions
+    from physrover.experiment.store import RunError, load_champions
 
     specs = _sweep(tmp_path).runs(tmp_path / "drop", drop_state=True)[:2]
     run_sweep(specs, workers=1, progress=False)
@@ -177,7 +179,7 @@ def test_drop_state_keeps_what_plots_and_videos_need(tmp_path):
 
 
 def test_sweep_cost_estimate_arithmetic(tmp_path):
-    from physrover.bench import estimate_sweep, sweep_wall_time
+    from physrover.experiment.bench import estimate_sweep, sweep_wall_time
 
     specs = _sweep(tmp_path).runs(tmp_path / "est", seeds=3)
     # a timer that charges by method: cells must be timed once each, seeds multiply
@@ -201,7 +203,7 @@ def test_sweep_cost_estimate_arithmetic(tmp_path):
 def test_sweep_cost_estimate_counts_a_trainers_iterations(tmp_path):
     # A gradient-based trainer's cell costs its iterations (ceil(total_episodes / num_envs)),
     # not generations, and is timed per iteration.
-    from physrover.bench import estimate_sweep
+    from physrover.experiment.bench import estimate_sweep
 
     text = """
 [sweep]

@@ -3,14 +3,14 @@
 import pytest
 from conftest import assert_same_run
 
-from physrover.cli import main
+from physrover.analysis.plots import load_runs
+from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig
-from physrover.evaluate import evaluate_run
+from physrover.experiment.evaluate import evaluate_run
+from physrover.experiment.provenance import code_fingerprint, read_provenance
+from physrover.experiment.store import read_metrics
 from physrover.learn.ccea import stats_header
 from physrover.marl.common import Trainer
-from physrover.plots import load_runs
-from physrover.provenance import code_fingerprint, read_provenance
-from physrover.runs import read_metrics
 
 TINY = ["--set", "n_rovers=3", "--set", "n_req=1", "--set", "steps=10",
         "--set", "poi_ring_radius=5.0", "--set", "num_envs=4", "--set", "total_episodes=16",
@@ -84,7 +84,8 @@ def test_trainer_tables_in_the_config():
 
 
 def test_a_sweep_runs_trainers_and_then_skips_them(tmp_path):
-    from physrover.sweep import Sweep, run_status, run_sweep
+    from physrover.experiment.execute import run_sweep
+    from physrover.experiment.sweep import Sweep, run_status
 
     path = tmp_path / "marl.toml"
     path.write_text(
@@ -100,7 +101,7 @@ def test_a_sweep_runs_trainers_and_then_skips_them(tmp_path):
 
 
 def test_curves_never_pool_trainer_runs_of_different_hyper_parameters(tmp_path):
-    from physrover.plots import curve_table
+    from physrover.analysis.plots import curve_table
 
     runs = []
     for lr in ("0.001", "0.003"):

@@ -7,6 +7,8 @@
 
 Every config is validated on construction: a bad value raises :class:`ConfigError`, whose
 message names the field and the allowed range. Unknown names are errors, never ignored.
+
+May import: :mod:`physrover.core` (its registries, to validate names).
 """
 
 from physrover.config.base import (

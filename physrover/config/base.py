@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import tomlkit
 
-from physrover.registry import did_you_mean
+from physrover.core.registry import did_you_mean
 
 if sys.version_info >= (3, 11):
     import tomllib

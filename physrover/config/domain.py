@@ -32,7 +32,7 @@ from physrover.config.base import (
     dumps_toml,
     loads_toml,
 )
-from physrover.registry import DYNAMICS, SCENARIOS, SENSORS
+from physrover.core.registry import DYNAMICS, SCENARIOS, SENSORS
 
 PER_ROVER = ("rover_radius", "rover_mass", "max_force", "max_torque", "max_speed")
 """The [physics] fields that take one number for every rover or a list of one per rover."""
@@ -168,7 +168,7 @@ class DomainConfig(ConfigBase):
     motion: str = "ideal"
     """Motion model: "ideal" (the paper's kinematics) or "physics" (rigid bodies with
     finite force, its parameters in [physics]); any registered in
-    :data:`physrover.registry.DYNAMICS`."""
+    :data:`physrover.core.registry.DYNAMICS`."""
     physics: Any = None
     """[physics]: a :class:`PhysicsConfig` (used when motion = "physics")."""
     scenario: Any = None

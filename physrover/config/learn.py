@@ -7,7 +7,7 @@ import math
 from typing import ClassVar
 
 from physrover.config.base import ConfigBase, check, check_choice
-from physrover.registry import CREDITS, FITNESS_METHODS, TRAINERS
+from physrover.core.registry import CREDITS, FITNESS_METHODS, TRAINERS
 
 OPTIMIZERS = ("sgd", "adam")
 
@@ -30,7 +30,7 @@ class LearnConfig(ConfigBase):
     """Fitness method (see the class docstring)."""
     feedback: str = "D"
     """The credit signal, each rover's immediate feedback: "D" (difference evaluation, Eq. 1),
-    "G", or any registered in :data:`physrover.registry.CREDITS` (physrover.domain.credit)."""
+    "G", or any registered in :data:`physrover.core.registry.CREDITS` (physrover.domain.credit)."""
     generations: int = 5000
     """Generations to run."""
     seed: int = 0

@@ -17,7 +17,7 @@ from physrover.config.base import (
 )
 from physrover.config.domain import COMPONENTS, REGISTRIES, DomainConfig
 from physrover.config.learn import LearnConfig
-from physrover.registry import TRAINERS
+from physrover.core.registry import TRAINERS
 
 SHARED_WITH_LEARN = ("seed", "hidden", "eval_episodes", "checkpoint_every")
 """Fields a trainer's table shares with [learn], set in [learn] only (one seed per run)."""

@@ -2,4 +2,6 @@
 the world.
 
 Nothing in this package imports from the gymnasium envs, the learners or the CLI.
+
+May import: :mod:`physrover.core`, :mod:`physrover.config`.
 """

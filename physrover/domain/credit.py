@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from physrover.core.registry import CREDITS
 from physrover.domain.scoring import d_plus_plus
-from physrover.registry import CREDITS
 
 
 class Credit:

@@ -23,8 +23,8 @@ from typing import ClassVar
 
 import numpy as np
 
+from physrover.core.registry import DYNAMICS
 from physrover.domain.kernels import Fused, heading_trig, move
-from physrover.registry import DYNAMICS
 
 
 class Dynamics:

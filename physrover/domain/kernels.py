@@ -35,7 +35,7 @@ import math
 
 import numpy as np
 
-from physrover.compiled import jit
+from physrover.core.compiled import jit
 from physrover.domain.state import WorldState
 
 
@@ -184,7 +184,7 @@ def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
     none); ``scratch`` from :func:`sense_scratch`. Each channel adds its terms object by
     object (rovers by index, then POIs).
 
-    ``sectors`` is a tuple of n zeros (:func:`physrover.compiled.dims`) and ``radius_sq``
+    ``sectors`` is a tuple of n zeros (:func:`physrover.core.compiled.dims`) and ``radius_sq``
     may be None: the compiler then knows the sector count and whether there is a radius,
     and compiles the paper's sensor (4 sectors, no radius) as if it were written alone.
     Four sectors take the vectorised :func:`_sense_quadrants`; others the loop below.
@@ -269,7 +269,7 @@ def score_team(e, state, d_cap_sq, n_req, t):
 @jit
 def sense(state, d_min, sectors, radius_sq, obs):
     """The density sensor (Eqs. 14-16) of every rover of every team in ``len(sectors)``
-    sectors (a tuple of zeros, :func:`physrover.compiled.dims`), blind beyond
+    sectors (a tuple of zeros, :func:`physrover.core.compiled.dims`), blind beyond
     ``sqrt(radius_sq)`` world units (None: sees everything): ``obs`` (E, R, 2 n_sectors)
     float32, written."""
     scratch = sense_scratch(state.cos_h.shape[1], sectors)

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from physrover.compiled import jit
+from physrover.core.compiled import jit
 from physrover.domain.kernels import _move
 
 CONTACT_SWEEPS = 20

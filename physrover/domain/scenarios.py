@@ -47,8 +47,8 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from physrover.config import Component, check, check_choice
+from physrover.core.registry import SCENARIOS
 from physrover.domain.obstacles import capsules, check_obstacles, reach
-from physrover.registry import SCENARIOS
 
 
 class StartState(NamedTuple):

@@ -62,10 +62,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from physrover.compiled import dims
 from physrover.config import Component, check
+from physrover.core.compiled import dims
+from physrover.core.registry import SENSORS
 from physrover.domain.kernels import Fused, sense
-from physrover.registry import SENSORS
 
 
 @dataclasses.dataclass(frozen=True)

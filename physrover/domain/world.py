@@ -36,11 +36,11 @@ from typing import Any
 import numpy as np
 
 from physrover.config import DomainConfig
+from physrover.core.registry import DYNAMICS
 from physrover.domain.kernels import ideal_step_flat, score
 from physrover.domain.scenarios import StartState
 from physrover.domain.scoring import difference, start_episode
 from physrover.domain.state import WorldState
-from physrover.registry import DYNAMICS
 
 ACTION_DIM = 2
 """Action components per rover: (forward, left) in the rover's frame."""

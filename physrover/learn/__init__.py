@@ -2,4 +2,7 @@
 
 Reaches the world only through :class:`physrover.envs.RoverVectorEnv` (and the world it
 wraps, for trajectories).
+
+May import: :mod:`physrover.core`, :mod:`physrover.config`, :mod:`physrover.domain`,
+:mod:`physrover.envs`.
 """

@@ -34,14 +34,14 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from physrover.compiled import dims
 from physrover.config import RunConfig
-from physrover.envs import RoverVectorEnv, generator_from_state, team_spaces
+from physrover.core.compiled import dims
+from physrover.core.registry import CREDITS
+from physrover.envs.gymnasium_env import RoverVectorEnv, generator_from_state, team_spaces
 from physrover.learn.evolution import evolve
 from physrover.learn.fitness import Problem, make_method
 from physrover.learn.kernels import gather_trajectories
 from physrover.learn.policies import PolicyLayout
-from physrover.registry import CREDITS
 
 
 @dataclass(frozen=True)

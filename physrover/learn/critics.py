@@ -50,7 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physrover.compiled import dims
+from physrover.core.compiled import dims
 from physrover.learn.kernels import critic_update, critic_values
 
 

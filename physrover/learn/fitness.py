@@ -15,7 +15,7 @@ generation's episodes, Algorithm 1's inner loop) and ``update`` (end of generati
 - critics: the fitness critic's aggregate over the trajectory (Eqs. 3-4), with the feedback
   stored in the replay buffer and the critic updated after evolution (Algorithm 1).
 
-Every method is registered by name in :data:`physrover.registry.FITNESS_METHODS` (with a
+Every method is registered by name in :data:`physrover.core.registry.FITNESS_METHODS` (with a
 one-line summary and the paper section, listed by ``physrover methods``); a new method is a
 :class:`FitnessMethod` subclass plus one :func:`register_method` call.
 """
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from physrover.config import LearnConfig
+from physrover.core.registry import FITNESS_METHODS
 from physrover.learn.critics import CriticSettings, FitnessCritic
-from physrover.registry import FITNESS_METHODS
 
 
 class FitnessMethod:

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from physrover.compiled import jit
+from physrover.core.compiled import jit
 
 
 @jit
@@ -59,7 +59,7 @@ def forward_team(genomes, hidden, obs, out, dims, h):
     """Actions ``out`` (R, 2) float32 of one team's R rovers: rover r plays genome
     ``genomes[r]`` (P,) on ``obs[r]`` (n_in,), laid out as :class:`PolicyLayout` says
     (``W1 (n_in x H) | b1 | W2 (H x 2) | b2``). ``dims``: n_in zeros
-    (:func:`physrover.compiled.dims`); ``h`` (H,) float32 scratch for the hidden layer.
+    (:func:`physrover.core.compiled.dims`); ``h`` (H,) float32 scratch for the hidden layer.
     """
     n_in = len(dims)
     n_rovers = genomes.shape[0]

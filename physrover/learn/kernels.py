@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from physrover.compiled import jit, jit_reassoc
+from physrover.core.compiled import jit, jit_reassoc
 
 # Mini-batches are padded to a multiple of this many pairs (16 float32 lanes of AVX-512 x 4
 # interleaved, as LLVM vectorises): measured, 64 pairs take less time than 50.

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from physrover.compiled import dims, jit
+from physrover.core.compiled import dims, jit
 from physrover.domain.kernels import move_team, score_team, sense_scratch, sense_team
 from physrover.domain.state import WorldState
 from physrover.domain.world import RoverWorld

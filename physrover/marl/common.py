@@ -24,7 +24,7 @@ import torch
 from torch import nn
 
 from physrover.config import DomainConfig
-from physrover.envs import RoverVectorEnv, team_spaces
+from physrover.envs.gymnasium_env import RoverVectorEnv, team_spaces
 from physrover.marl.configs import REWARDS, MARLConfig  # noqa: F401  (re-exported)
 
 # ----------------------------------------------------------------------------------------------

@@ -2,7 +2,7 @@
 
 Each algorithm's hyper-parameters are a typed, validated table (``[mappo]``, ``[maddpg]`` in a
 run's config.toml), and each algorithm is registered by name in
-:data:`physrover.registry.TRAINERS`, so ``physrover train --method mappo`` and config
+:data:`physrover.core.registry.TRAINERS`, so ``physrover train --method mappo`` and config
 validation know it without importing torch; :mod:`physrover.marl.mappo` and
 :mod:`physrover.marl.maddpg` (which do import torch) hold the trainers themselves.
 """
@@ -14,7 +14,7 @@ import math
 from typing import ClassVar
 
 from physrover.config import COMPONENTS, ConfigBase, check, check_choice
-from physrover.registry import FITNESS_METHODS, TRAINERS
+from physrover.core.registry import FITNESS_METHODS, TRAINERS
 
 REWARDS = ("G", "D")
 """Credit signals a baseline trains on: "G" every rover gets the team's increase of G at each
@@ -220,7 +220,7 @@ def register_trainer(
     ``[mappo]``) no other table of a run uses; ``trainer``: a
     :class:`physrover.marl.common.Trainer` subclass or ``"module:Class"``. The run directory,
     checkpoints, bit-identical resume, ``curves --x episodes``, ``render`` and ``evaluate``
-    come with it (:mod:`physrover.trainer_runs`).
+    come with it (:mod:`physrover.experiment.trainer_runs`).
     """
     if not (isinstance(config, type) and issubclass(config, MARLConfig)):
         raise TypeError(f"a trainer's config must be a MARLConfig subclass, got {config!r}")

@@ -8,7 +8,7 @@ model, the two frames next to each other with a dark bar of :data:`DIVIDER_PX` p
 between them.
 
 Each episode is played to its end first (:func:`play` keeps the state of every step), then
-drawn in one view (:meth:`~physrover.render.Transform.fit_states`) that holds the POIs and
+drawn in one view (:meth:`~physrover.viz.render.Transform.fit_states`) that holds the POIs and
 every position of every rover of the episode, common to both panels so they compare.
 """
 
@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from physrover.config import DomainConfig
-from physrover.envs import RoverEnv
+from physrover.envs.gymnasium_env import RoverEnv
+from physrover.experiment.store import load_champions, load_run_config
 from physrover.learn.policies import PolicyLayout
-from physrover.render import (
+from physrover.viz.render import (
     FrameState,
     RenderConfig,
     Transform,
@@ -30,7 +31,6 @@ from physrover.render import (
     label,
     world_state,
 )
-from physrover.runs import load_champions, load_run_config
 
 DIVIDER_PX = 4
 """Width of the bar between side-by-side panels, pixels (even, so the video width stays even)."""

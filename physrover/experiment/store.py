@@ -1,17 +1,22 @@
-"""Run directories: resolved config, metrics.csv, champion snapshots, resumable state.
+"""The run-directory store: where a run lives on disk, and how it is written so that a kill
+at any instant leaves a run that resumes.
 
 Layout of a run directory::
 
     config.toml                the resolved RunConfig
     metrics.csv                one row per generation (columns: physrover.learn.ccea)
-    state.npz, state.json      the latest full state (populations, critics, replay buffers,
-                               every RNG state), replaced atomically every checkpoint
+    state.npz                  the checkpoint: every array and the metadata (``__meta__``)
+                               in one file, replaced atomically every checkpoint
+    state.prev.npz             the checkpoint before it (the fallback for a damaged one)
+    state.json                 a summary of the checkpoint's metadata (``--status``, sweeps)
     champions/gen_NNNNNN.npy   (R, P) genomes of the champion team at each checkpoint
     provenance.json            the code and machine of every start and resume
-                               (physrover.provenance)
+                               (physrover.experiment.provenance)
 
-``train`` starts a run in a new (or empty) directory, or continues one with ``resume=True``;
-a resumed run ends bit-identical to an uninterrupted one with the same seed.
+Every file is replaced through :func:`atomic_write` (temporary file, fsync, rename,
+directory fsync). This module knows nothing of how a run trains
+(:mod:`physrover.experiment.training`); it takes any learner with ``state()``,
+``load_state()``, ``generation`` and ``champion_genomes()``.
 """
 
 from __future__ import annotations
@@ -23,22 +28,17 @@ import json
 import math
 import os
 import re
-import signal
 import tempfile
-import threading
 import warnings
 import zipfile
-from collections.abc import Callable
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from physrover import plugins
 from physrover.config import ConfigError, RunConfig
-from physrover.learn.ccea import CCEA, GenerationStats, stats_header
-from physrover.progress import Progress
-from physrover.provenance import PROVENANCE, read_provenance, with_segment
+from physrover.core import plugins
+from physrover.experiment.provenance import PROVENANCE, read_provenance, with_segment
+from physrover.learn.ccea import stats_header
 
 CONFIG, METRICS, STATE_NPZ, STATE_PREV, STATE_JSON, CHAMPIONS = (
     "config.toml",
@@ -75,7 +75,7 @@ def _fsync_dir(directory: Path) -> None:
         os.close(fd)
 
 
-def _atomic_write(path: Path, data: bytes | str, previous: Path | None = None) -> None:
+def atomic_write(path: Path, data: bytes | str, previous: Path | None = None) -> None:
     """Replace ``path`` by ``data`` so that a kill at any instant leaves the old file or the
     new one, whole: written to a temporary file in the same directory, fsynced, renamed over
     ``path``, and the directory fsynced so the rename itself survives a crash.
@@ -142,20 +142,21 @@ def save_state(run_dir: Path, learner) -> None:
         champions.mkdir(exist_ok=True)
         buffer = io.BytesIO()
         np.save(buffer, learner.champion_genomes())
-        _atomic_write(target, buffer.getvalue())
+        atomic_write(target, buffer.getvalue())
         target = run_dir / STATE_NPZ
-        _atomic_write(target, _npz_bytes(arrays), previous=run_dir / STATE_PREV)
+        atomic_write(target, _npz_bytes(arrays), previous=run_dir / STATE_PREV)
     except OSError as exc:
+        reason = f"{exc.strerror or exc}; {intact_checkpoint(run_dir)}"
         raise RunError(f"cannot write the checkpoint of generation {generation}: {target}: "
-                       f"{exc.strerror or exc}; {_intact(run_dir)}") from None  # fmt: skip
+                       f"{reason}") from None  # fmt: skip
     try:
-        _atomic_write(run_dir / STATE_JSON, meta_text)
+        atomic_write(run_dir / STATE_JSON, meta_text)
     except OSError as exc:
         raise RunError(f"{run_dir / STATE_JSON}: {exc.strerror or exc}; the checkpoint of "
                        f"generation {generation} is saved in {STATE_NPZ}") from None  # fmt: skip
 
 
-def _intact(run_dir: Path) -> str:
+def intact_checkpoint(run_dir: Path) -> str:
     """What a failed write leaves to resume from, for its error: the generation state.npz
     holds now (the new one, where only the directory's fsync failed)."""
     try:
@@ -167,13 +168,13 @@ def _intact(run_dir: Path) -> str:
 
 def record_provenance(run_dir: Path, done: int, total: int) -> None:
     """Append this process's segment to ``run_dir``'s provenance.json
-    (:func:`physrover.provenance.with_segment`, which warns of other code or another CPU)
+    (:func:`physrover.experiment.provenance.with_segment`, which warns of other code or another CPU)
     as it trains from generation ``done`` to ``total``; none when ``done >= total`` (a
     finished run resumed trains nothing)."""
     if done < total:
         segments = with_segment(run_dir, done)
         text = json.dumps({"segments": segments}, indent=1) + "\n"
-        _atomic_write(run_dir / PROVENANCE, text)
+        atomic_write(run_dir / PROVENANCE, text)
 
 
 def drop_state(run_dir: Path) -> int:
@@ -232,7 +233,7 @@ def load_state(run_dir: Path, learner) -> dict | None:
     was never checkpointed.
 
     ``state.npz`` is read first. Where it is missing (a kill between the two renames of
-    :func:`_atomic_write`) or cannot be read, ``state.prev.npz`` is, with a warning when
+    :func:`atomic_write`) or cannot be read, ``state.prev.npz`` is, with a warning when
     ``state.npz`` was there but unreadable (it is moved aside to ``state.npz.bad``, so the
     next checkpoint does not push the good one out). Raises :class:`RunError`, in one line
     naming the file, when no checkpoint can be read, and when the state was dropped.
@@ -277,16 +278,16 @@ def resume_run(out: Path, learner, header: list[str]) -> list[dict]:
     the temporary files a kill left. A run never checkpointed starts over. Returns the
     kept rows."""
     for stale in [*out.glob(".*.tmp"), *(out / CHAMPIONS).glob(".*.tmp")]:
-        stale.unlink()  # a temporary file of _atomic_write that a kill left behind
+        stale.unlink()  # a temporary file of atomic_write that a kill left behind
     meta = load_state(out, learner)
     done = 0 if meta is None else int(meta["generation"])
     rows = [r for r in read_metrics(out / METRICS) if r["generation"] <= done] if meta else []
-    _write_metrics(out / METRICS, rows, header)
+    write_metrics(out / METRICS, rows, header)
     for generation, path in champion_checkpoints(out).items():
         if generation > done:
             path.unlink()
     if meta is not None and last_checkpoint(out) != done:
-        _atomic_write(out / STATE_JSON, json.dumps(meta))
+        atomic_write(out / STATE_JSON, json.dumps(meta))
     return rows
 
 
@@ -317,17 +318,17 @@ def last_checkpoint(run_dir: Path) -> int | None:
         return None
 
 
-def _write_metrics(path: Path, rows: list[dict], header: list[str] | None = None) -> None:
+def write_metrics(path: Path, rows: list[dict], header: list[str] | None = None) -> None:
     header = header or stats_header()
     text = io.StringIO(newline="")
     writer = csv.DictWriter(text, fieldnames=header)
     writer.writeheader()
     for row in rows:
-        writer.writerow({k: _fmt(row[k]) for k in header})
-    _atomic_write(path, text.getvalue())
+        writer.writerow({k: format_value(row[k]) for k in header})
+    atomic_write(path, text.getvalue())
 
 
-def _fmt(value: float) -> str:
+def format_value(value: float) -> str:
     if isinstance(value, int) or (
         isinstance(value, float) and value.is_integer() and abs(value) < 1e15
     ):
@@ -339,8 +340,8 @@ def prepare_run_dir(out: Path, config: RunConfig, header: list[str] | None = Non
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise RunError(f"{out} exists and is not empty; use --resume {out} to continue it")
     out.mkdir(parents=True, exist_ok=True)
-    _atomic_write(out / CONFIG, config.to_toml())
-    _write_metrics(out / METRICS, [], header)
+    atomic_write(out / CONFIG, config.to_toml())
+    write_metrics(out / METRICS, [], header)
 
 
 def find_runs(paths: list[str | Path]) -> list[Path]:
@@ -390,247 +391,3 @@ def load_champions(run_dir: Path, checkpoint: int | None = None) -> tuple[int, n
     if checkpoint not in found:
         raise RunError(f"no checkpoint {checkpoint} in {run_dir}; have {sorted(found)}")
     return checkpoint, np.load(found[checkpoint])
-
-
-def _kernels_cached() -> bool:
-    """Whether numba has cached this version's compiled kernels on disk (else the first
-    generation compiles): their cache index files (``*.nbi``) under
-    :func:`physrover.compiled.cache_dir`."""
-    from physrover.compiled import cache_dir
-
-    place = Path(cache_dir())
-    return place.is_dir() and next(place.rglob("*kernels*.nbi"), None) is not None
-
-
-def train(
-    config: RunConfig | None,
-    out: str | Path,
-    *,
-    resume: bool = False,
-    generations: int | None = None,
-    progress: bool = True,
-    tensorboard: bool = False,
-    on_generation: Callable[[GenerationStats], None] | None = None,
-) -> Path:
-    """Train (or continue) a run in ``out`` up to ``generations`` (default: the config's).
-
-    With ``resume``, ``config`` is ignored and read from ``out``; the run continues from its
-    last checkpoint (dropping metrics rows written after it) up to ``generations``. With
-    ``tensorboard``, every metrics row is also written as TensorBoard scalars under
-    ``out/tensorboard`` (needs ``pip install 'physrover[tensorboard]'``).
-    """
-    out = Path(out)
-    if resume:
-        config = load_run_config(out)
-        if generations is not None and generations != config.learn.generations:
-            config = config.with_overrides({"generations": generations})
-            _atomic_write(out / CONFIG, config.to_toml())
-    else:
-        if config is None:
-            raise ConfigError("config", "a config is needed to start a run")
-        if generations is not None:
-            config = config.with_overrides({"generations": generations})
-    if config.trainer is not None:  # a gradient-based baseline, not the CCEA
-        from physrover.trainer_runs import train_trainer
-
-        return train_trainer(config, out, resume=resume, progress=progress,
-                             tensorboard=tensorboard)  # fmt: skip
-    if not resume:
-        prepare_run_dir(out, config)
-    log = TensorBoardLog(out) if tensorboard else None
-    total = config.learn.generations
-    bar = Progress(total, f"{config.learn.method} gen", unit="gen") if progress else None
-    if bar:  # the first world reset and generation compile (or load) the kernels
-        bar.warm_up("loading compiled kernels" if _kernels_cached()
-                    else "compiling kernels, first run only")  # fmt: skip
-    ccea = CCEA(config)
-    rows = resume_run(out, ccea, stats_header()) if resume else []
-    record_provenance(out, ccea.generation, total)
-
-    latest: list[GenerationStats] = []
-
-    def next_row() -> dict:
-        latest[:] = [ccea.run_generation()]
-        return asdict(latest[0])
-
-    after = (lambda: on_generation(latest[0])) if on_generation else None
-    write_rows(out, ccea, next_row, stats_header(), rows, total,
-               config.learn.checkpoint_every, log, bar, restart_clock=True,
-               after_row=after)  # fmt: skip
-    return out
-
-
-_stop_event = None
-"""A sweep worker's stop: an event its pool sets when the sweep is interrupted
-(:func:`set_stop_event`); None in a process of its own."""
-
-
-def set_stop_event(event) -> None:
-    """Make ``event`` (``is_set()``) this process's stop request instead of its own signals:
-    what a sweep's pool workers do (:mod:`physrover.sweep`), which then leave the signals to
-    the sweep's process."""
-    global _stop_event
-    _stop_event = event
-
-
-class StopRequests:
-    """``with StopRequests() as stop``: a Ctrl-C (SIGINT) or SIGTERM (a cluster's time limit,
-    ``kill``) inside sets ``stop.requested`` to the signal's name instead of interrupting,
-    so the training loop ends the generation, checkpoints it and stops; another SIGINT
-    interrupts at once (KeyboardInterrupt; a repeated SIGTERM, as a cluster may send to
-    every process of a job, is the same request). In a sweep's worker the request is the
-    sweep's stop event (:func:`set_stop_event`) and "at once" is the sweep's SIGUSR1.
-    Inside :meth:`held` (a checkpoint or a metrics row being written) an "at once" waits
-    until the writing is done. Outside the main thread, where handlers cannot be installed,
-    it does nothing. The previous handlers are restored on exit."""
-
-    def __init__(self):
-        self._requested: str | None = None
-        self._previous: dict = {}
-        self._holding = 0
-        self._deferred = False
-
-    @property
-    def requested(self) -> str | None:
-        """The signal's name once one came (or "the sweep's stop"), else None."""
-        if self._requested is None and _stop_event is not None and _stop_event.is_set():
-            self._requested = "the sweep's stop"
-        return self._requested
-
-    def _now(self) -> None:
-        if self._holding:
-            self._deferred = True  # raised when the writing is done (held's exit)
-        else:
-            raise KeyboardInterrupt
-
-    def _handle(self, signum, frame) -> None:
-        name = signal.Signals(signum).name
-        if self._requested is not None and name == "SIGINT":
-            self._now()
-        self._requested = self._requested or name
-
-    def __enter__(self) -> StopRequests:
-        if threading.current_thread() is not threading.main_thread():
-            return self
-        if _stop_event is None:
-            handlers = {signal.SIGINT: self._handle, signal.SIGTERM: self._handle}
-        else:  # a sweep's worker: the sweep's process has the signals
-            handlers = {getattr(signal, "SIGUSR1", None): lambda signum, frame: self._now()}
-        for number, handler in handlers.items():
-            if number is not None:
-                self._previous[number] = signal.signal(number, handler)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for number, handler in self._previous.items():
-            signal.signal(number, signal.SIG_DFL if handler is None else handler)
-
-    @contextlib.contextmanager
-    def held(self):
-        """Inside, an interrupt "at once" waits (the handlers still run, whichever thread
-        the signal reached, and record it): a second Ctrl-C cannot leave a checkpoint's two
-        files, or a metrics row, half written."""
-        self._holding += 1
-        try:
-            yield
-        finally:
-            self._holding -= 1
-        if self._deferred and not self._holding:
-            self._deferred = False
-            raise KeyboardInterrupt
-
-
-def write_rows(
-    out: Path,
-    learner,
-    next_row: Callable[[], dict],
-    header: list[str],
-    rows: list[dict],
-    total: int,
-    every: int,
-    log: TensorBoardLog | None,
-    bar: Progress | None,
-    restart_clock: bool = False,
-    after_row: Callable[[], None] | None = None,
-) -> None:
-    """The training loop of every learner (the CCEA, a gradient-based trainer): append
-    ``next_row()`` to metrics.csv until ``learner.generation`` reaches ``total``,
-    checkpointing every ``every`` generations and at the end (and once at all, for a run
-    already complete), with TensorBoard scalars and the progress bar (its best eval G
-    starting from ``rows``, the rows kept from before a resume; ``restart_clock``: its rate
-    counts from the end of the first generation, which compiles or loads the kernels);
-    ``after_row()`` is called once each row is written and checkpointed. A Ctrl-C or
-    SIGTERM ends the current generation (its row written, logged and shown), checkpoints it
-    and raises KeyboardInterrupt (:class:`StopRequests`), so a resume loses nothing; one in
-    the last generation lets the run finish. Closes ``log`` and ``bar``."""
-    best = max((r["eval_G"] for r in rows), default=math.nan)
-    saved = learner.generation
-    try:
-        with open(out / METRICS, "a", newline="") as f, StopRequests() as stop:
-            writer = csv.DictWriter(f, fieldnames=header)
-            first = restart_clock
-            while learner.generation < total:
-                row = next_row()
-                done = learner.generation
-                with stop.held():
-                    try:
-                        writer.writerow({k: _fmt(v) for k, v in row.items()})
-                        if done % every == 0 or done == total:
-                            f.flush()
-                    except OSError as exc:  # a full disk: say so, as a checkpoint does
-                        reason = f"{exc.strerror or exc}; {_intact(out)}"
-                        raise RunError(f"cannot write {out / METRICS}: {reason}") from None
-                    if done % every == 0 or done == total:
-                        save_state(out, learner)
-                        saved = done
-                if not math.isnan(row["eval_G"]):
-                    best = row["eval_G"] if math.isnan(best) else max(best, row["eval_G"])
-                if log:
-                    log.write_row(row)
-                if after_row:
-                    after_row()
-                if bar:
-                    if first:
-                        bar.restart_clock(done)
-                        first = False
-                    bar.update(done, **{"eval G": row["eval_G"], "best G": best})
-                if stop.requested and done < total:  # resume goes on from this generation
-                    with stop.held():
-                        if saved != done:
-                            f.flush()
-                            save_state(out, learner)
-                    raise KeyboardInterrupt(f"stopped by {stop.requested} after generation {done}")
-    finally:
-        if bar:
-            bar.close()
-        if log:
-            log.close()
-    if last_checkpoint(out) != learner.generation:  # a finished run resumed: none yet
-        save_state(out, learner)
-
-
-class TensorBoardLog:
-    """The metrics.csv scalars as TensorBoard events (``out/tensorboard``), step = generation.
-
-    metrics.csv stays the record; this is for viewing (``tensorboard --logdir runs``). A
-    resumed run appends to the same directory; TensorBoard shows the latest value of a step.
-    """
-
-    def __init__(self, out: Path):
-        try:
-            from torch.utils.tensorboard import SummaryWriter
-        except ImportError:
-            raise RunError(
-                "--tensorboard needs the tensorboard package: pip install 'physrover[tensorboard]'"
-            ) from None
-        self.writer = SummaryWriter(log_dir=str(out / "tensorboard"))
-
-    def write_row(self, row: dict) -> None:
-        """One metrics row ({column: value}, with ``generation`` the step)."""
-        row = dict(row)
-        step = row.pop("generation")
-        for name, value in row.items():
-            self.writer.add_scalar(name, value, global_step=step)
-
-    def close(self) -> None:
-        self.writer.close()

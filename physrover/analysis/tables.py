@@ -3,8 +3,8 @@
 ``physrover table RUN_DIRS [--compare FIELD=A,B] [--last N] [--out PREFIX]``.
 
 A run's *final score* is its mean eval G over its last ``last`` generations (RESULTS.md
-uses 50). Runs are grouped as the curves are (:mod:`physrover.curve_data`: equal configs but
-for the seed), each run one sample. :func:`cells` gives each group's n, mean final score
+uses 50). Runs are grouped as the curves are (:mod:`physrover.analysis.curve_data`: equal
+configs but for the seed), each run one sample. :func:`cells` gives each group's n, mean final score
 with its Student-t 95% half-width, range, and the fraction of runs that *learn* (final score
 above ``threshold``, 0.5 by default). :func:`comparisons` sets value A of one field against
 value B in every *cell* (a combination of the other fields that differ), e.g. the max
@@ -23,9 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
+from physrover.analysis.curve_data import Run, differing_fields, final_score, format_value
 from physrover.config import ConfigError, parse_override
-from physrover.curve_data import Run, differing_fields, final_score, format_value
-from physrover.stats import hedges_g, holm, learned_fraction, mean_ci, permutation_test, welch_t
+from physrover.core.stats import (
+    hedges_g,
+    holm,
+    learned_fraction,
+    mean_ci,
+    permutation_test,
+    welch_t,
+)
 
 CELL_COLUMNS = ["group", "n", "mean", "ci95_half_width", "min", "max", "learned"]
 COMPARE_COLUMNS = [
@@ -49,7 +56,7 @@ def scored(runs: list[Run], last: int) -> tuple[list[tuple[Run, float]], list[st
 
 def compare_samples(a, b, threshold: float = 0.5) -> dict:
     """Sample ``a`` against sample ``b`` (one final score per seed): sizes, means and their
-    difference, the two-sided permutation p-value (:func:`physrover.stats.permutation_test`:
+    difference, the two-sided permutation p-value (:func:`physrover.core.stats.permutation_test`:
     exact over every split up to 200,000 splits, 10 vs 10 seeds; else 100,000 random ones),
     Welch's t and degrees of freedom, Hedges' g, and each side's fraction of runs above
     ``threshold``."""

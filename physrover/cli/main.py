@@ -1,6 +1,6 @@
 """The ``physrover`` command: its argument parser, and ``main``, which runs a command.
 
-The commands themselves are in :mod:`physrover.commands`. Errors in user input (bad config
+The commands themselves are in :mod:`physrover.cli.commands`. Errors in user input (bad config
 values, unknown fields, missing files) are printed as one line ``physrover: error: ...``
 with exit status 2, never as a traceback.
 """
@@ -13,8 +13,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 
-from physrover import plugins
-from physrover.commands import (
+from physrover.cli.commands import (
     Interrupted,
     UsageError,
     cmd_bench,
@@ -29,8 +28,9 @@ from physrover.commands import (
     cmd_train,
 )
 from physrover.config import ConfigError
-from physrover.runs import RunError
-from physrover.video import VideoError
+from physrover.core import plugins
+from physrover.experiment.store import RunError
+from physrover.viz.video import VideoError
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:

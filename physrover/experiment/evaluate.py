@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from physrover.config import ConfigError
-from physrover.envs import RoverVectorEnv
+from physrover.core.stats import mean_ci
+from physrover.envs.gymnasium_env import RoverVectorEnv
+from physrover.experiment.store import load_champions, load_run_config
 from physrover.learn.policies import PolicyLayout
-from physrover.runs import load_champions, load_run_config
-from physrover.stats import mean_ci
 
 EVAL_SEED = 1_000_000
 """Default seed of the first evaluation episode: far from the seeds training runs use, so the

@@ -1,43 +1,13 @@
-"""Sweeps: grids of training runs on a local process pool or on a Ray cluster.
-
-A sweep file (TOML) names a base config and a grid::
-
-    [sweep]
-    name = "fig4-7"          # runs go under ROOT/name/ (ROOT: --root, default runs/sweeps)
-    seeds = 5                # seeds 0 .. seeds-1 for every cell (--seeds N or A:B overrides)
-    imports = ["my_parts.py"]  # optional: your own parts the grid names (physrover.plugins)
-
-    [base.domain]            # the base RunConfig, as in a run's config.toml
-    n_rovers = 15
-    [base.learn]
-    generations = 1000
-
-    [grid]                   # any config field -> the values to try
-    method = ["D", "average", "mean-critic", "max-critic"]
-    n_req = [3, 4, 5, 6]
-
-    [[variants]]             # optional: combinations that are not a product, each crossed
-    motion = "ideal"         # with the grid (here: idealised, and physics without and
-    [[variants]]             # with collisions; "ideal with collisions" would be a copy)
-    motion = "physics"
-    collisions = false
-
-Every cell x seed is one ``train`` run in its own directory, named by its grid values and
-seed. Re-running a sweep skips finished runs and resumes interrupted ones from their
-checkpoints; a crashed run is reported with its error and does not stop the others. Each
-worker runs one training at a time with torch/BLAS pinned to one thread.
-
-``--seeds A:B`` runs seeds A .. B-1 only: a sweep too long for one machine's lifetime can be
-run in chunks of seeds (e.g. ``--seeds 0:5`` then ``--seeds 5:10``), each run's name and
-results being those it has in the whole sweep. ``--skip-listed CSV`` leaves out the runs a
-results table (``experiments/results/runs.csv``: columns sweep, run, generations) lists as
-finished, so a later machine runs only what no earlier one finished (:func:`listed_finished`).
+"""Where a sweep's runs run: :func:`run_one` (one run, trained or resumed, in whichever
+process or node it lands), :func:`run_sweep` (every run of a sweep that is not done) on a
+local process pool or on Ray (``--ray local`` on loopback, or a cluster, where a run whose
+node dies is run again elsewhere and resumes from its checkpoint). The sweep files and the
+runs they name are :mod:`physrover.experiment.sweep`'s.
 """
 
 from __future__ import annotations
 
 import contextlib
-import itertools
 import multiprocessing
 import os
 import shutil
@@ -51,197 +21,27 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from physrover import plugins
-from physrover.config import ConfigError, RunConfig, load_toml_file, naming_file
-from physrover.progress import Progress
-from physrover.runs import drop_state
-from physrover.threads import pin_threads
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    name: str
-    config_toml: str
-    out: str
-    drop_state: bool = False
-    """Delete the run's checkpoint (state.npz, state.prev.npz) when it finishes (see
-    :func:`physrover.runs.drop_state`)."""
-
-
-@dataclass(frozen=True)
-class Sweep:
-    name: str
-    base: RunConfig
-    grid: dict[str, list[Any]]
-    seeds: int
-    variants: tuple[dict[str, Any], ...] = ({},)
-    imports: tuple[str, ...] = ()
-    """[sweep] imports: modules or .py files (relative to the sweep file) of the researcher's
-    own parts that the runs name, imported when the file is loaded and by every worker
-    (:mod:`physrover.plugins`)."""
-
-    @classmethod
-    def load(cls, path: str | Path) -> Sweep:
-        """The sweep in a TOML file; every error names the file."""
-        data = load_toml_file(path)
-        with naming_file(path):
-            return cls._from_dict(data, path)
-
-    @classmethod
-    def _from_dict(cls, data: dict, path: str | Path) -> Sweep:
-        unknown = sorted(set(data) - {"sweep", "base", "grid", "variants"})
-        if unknown:
-            raise ConfigError(
-                unknown[0], "unknown sweep table (known: sweep, base, grid, variants)"
-            )
-        meta = data.get("sweep", {})
-        bad = sorted(set(meta) - {"name", "seeds", "imports"})
-        if bad:
-            raise ConfigError(bad[0], "unknown [sweep] key (known: name, seeds, imports)")
-        imports = meta.get("imports", [])
-        if not isinstance(imports, list) or not all(isinstance(i, str) for i in imports):
-            raise ConfigError("imports", "must be a list of module names or .py paths")
-        plugins.load(imports, base=Path(path).resolve().parent)  # before any name is checked
-        base = RunConfig.from_dict(data.get("base", {}))
-        grid = data.get("grid", {})
-        for field, values in grid.items():
-            if not isinstance(values, list) or not values:
-                raise ConfigError(field, "grid values must be a non-empty list")
-            base.with_overrides({field: values[0]})  # the name must be a config field
-        seeds = meta.get("seeds", 1)
-        if not isinstance(seeds, int) or seeds < 1:
-            raise ConfigError("seeds", f"must be a positive integer, got {seeds!r}")
-        variants = tuple(data.get("variants", [{}]))
-        for variant in variants:
-            base.with_overrides(variant)  # names and values must be valid
-        name = str(meta.get("name", Path(path).stem))
-        return cls(name, base, grid, seeds, variants, tuple(imports))
-
-    def runs(
-        self, root: str | Path, seeds: int | range | None = None, drop_state: bool = False
-    ) -> list[RunSpec]:
-        """Every cell x seed, with its resolved config; invalid cells are config errors.
-        In the order they run: every cell's first seed, then every cell's second, ... (so a
-        sweep stopped part-way has its finished seeds spread evenly over the cells).
-        ``seeds``: how many (seeds 0 .. seeds-1) or which (a range); default the file's.
-        ``drop_state``: each run deletes its checkpoint when it finishes."""
-        fields = list(self.grid)
-        specs = []
-        cells = list(
-            itertools.product(itertools.product(*(self.grid[f] for f in fields)), self.variants)
-        )
-        chosen = seeds if isinstance(seeds, range) else range(seeds or self.seeds)
-        for seed in chosen:  # seed-major: a sweep stopped part-way leaves every cell its seeds
-            for values, variant in cells:
-                overrides = {**dict(zip(fields, values, strict=True)), **variant, "seed": seed}
-                config = self.base.with_overrides(overrides)
-                name = "_".join(f"{f}={_slug(v)}" for f, v in overrides.items())
-                out = str(Path(root) / self.name / name)
-                specs.append(RunSpec(name, config.to_toml(), out, drop_state))
-        return specs
-
-
-def parse_seeds(text: str) -> int | range:
-    """``--seeds``: ``N`` (seeds 0 .. N-1) or ``A:B`` (seeds A .. B-1), N >= 1, 0 <= A < B."""
-    try:
-        if ":" in text:
-            first, stop = (int(part) for part in text.split(":"))
-            if 0 <= first < stop:
-                return range(first, stop)
-        elif int(text) >= 1:
-            return int(text)
-    except ValueError:
-        pass
-    raise ConfigError(
-        "seeds", f"must be N >= 1 (seeds 0..N-1) or A:B with 0 <= A < B, got {text!r}"
-    )
-
-
-def listed_finished(specs: list[RunSpec], table: str | Path, sweep: str) -> set[str]:
-    """The names of the ``specs`` that the CSV ``table`` (columns ``sweep``, ``run``,
-    ``generations``) lists under ``sweep`` with at least the generations their config asks
-    for: runs an earlier machine finished."""
-    import csv
-
-    path = Path(table)
-    if not path.is_file():
-        raise ConfigError("skip-listed", f"{path} is not a file")
-    with open(path, newline="") as f:
-        reader = csv.DictReader(f)
-        missing = {"sweep", "run", "generations"} - set(reader.fieldnames or ())
-        if missing:
-            raise ConfigError("skip-listed", f"{path} has no column {sorted(missing)[0]!r}")
-        done = {row["run"]: int(row["generations"]) for row in reader if row["sweep"] == sweep}
-    return {
-        spec.name
-        for spec in specs
-        if spec.name in done and done[spec.name] >= RunConfig.from_toml(spec.config_toml).length
-    }
-
-
-def _slug(value: Any) -> str:
-    if isinstance(value, (list, tuple)):
-        return "-".join(_slug(v) for v in value)
-    return str(value).lower() if isinstance(value, bool) else str(value)
-
-
-def run_status(spec: RunSpec) -> str:
-    """ "done", "partial" (has a checkpoint or a started directory) or "new"."""
-    return run_progress(spec)[0]
-
-
-def run_progress(spec: RunSpec) -> tuple[str, int, int]:
-    """(:func:`run_status`, the generation of the run's last checkpoint (0 without one),
-    the run's length): a resume starts from that checkpoint, so a run that is training
-    now is reported as far as it has checkpointed."""
-    import json
-
-    out = Path(spec.out)
-    length = RunConfig.from_toml(spec.config_toml).length
-    if not out.exists():
-        return "new", 0, length
-    state = out / "state.json"
-    if not state.exists():
-        return "partial", 0, length
-    generation = int(json.loads(state.read_text())["generation"])
-    return ("done" if generation >= length else "partial"), generation, length
-
-
-def status_report(name: str, specs: list[RunSpec], listed: int = 0) -> list[str]:
-    """``physrover sweep FILE --status``: a line per run that is not done (its status and
-    checkpointed generations of its length, then its directory), and a last line counting
-    done, partial and new runs, the share of their generations that is checkpointed, and
-    the ``listed`` runs that ``--skip-listed`` left out."""
-    counts = {"done": 0, "partial": 0, "new": 0}
-    lines, reached, total = [], 0, 0
-    for spec in specs:
-        status, generation, length = run_progress(spec)
-        counts[status] += 1
-        reached, total = reached + min(generation, length), total + length
-        if status != "done":
-            lines.append(f"{status:7s} {generation:>7d}/{length:<7d} {spec.out}")
-    share = 100.0 * reached / total if total else 100.0
-    summary = ", ".join(f"{n} {s}" for s, n in counts.items())
-    summary += f"; {share:.1f}% of their generations checkpointed"
-    if listed:
-        summary += f"; {listed} more listed as finished by --skip-listed"
-    lines.append(f"sweep {name}: {summary}")
-    return lines
+from physrover.config import ConfigError, RunConfig
+from physrover.core import plugins
+from physrover.core.progress import Progress
+from physrover.core.threads import pin_threads
+from physrover.experiment.store import drop_state
+from physrover.experiment.sweep import RunSpec, run_status
 
 
 def run_one(spec: RunSpec) -> tuple[str, float, str | None]:
     """Train (or resume) one run; returns (name, seconds, error or None). A run's error is
     returned, not raised; a stop of the sweep (:func:`_run_pool`) raises KeyboardInterrupt,
     before the run starts if it came first."""
-    from physrover import runs
+    from physrover.experiment import stops
 
-    if runs._stop_event is not None and runs._stop_event.is_set():
+    if stops._stop_event is not None and stops._stop_event.is_set():
         raise KeyboardInterrupt(f"{spec.name}: not started, the sweep is stopping")
     start = time.perf_counter()
     try:
         pin_threads(1)
         plugins.load_from_environment()  # a spawned or Ray worker: the parts the runs name
-        from physrover.runs import train
+        from physrover.experiment.training import train
 
         status = run_status(spec)
         if status != "done":
@@ -362,8 +162,8 @@ def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:
 def _worker_init(stop) -> None:
     """A pool worker: Ctrl-C is the sweep's to handle (the terminal sends it to every
     process of the group), a SIGTERM here stops the whole sweep, and the runs stop on the
-    sweep's event (:func:`physrover.runs.set_stop_event`)."""
-    from physrover.runs import set_stop_event
+    sweep's event (:func:`physrover.experiment.stops.set_stop_event`)."""
+    from physrover.experiment.stops import set_stop_event
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())

@@ -2,8 +2,8 @@
 
 Videos (:class:`VideoWriter`) are H.264 (libx264, yuv420p) MP4 written with PyAV, which
 browsers, GitHub and VS Code play; yuv420p needs even frame sizes, which
-:class:`~physrover.render.RenderConfig` requires (no hidden padding: a frame is the video's
-size). The frames come from :mod:`physrover.render`.
+:class:`~physrover.viz.render.RenderConfig` requires (no hidden padding: a frame is the video's
+size). The frames come from :mod:`physrover.viz.render`.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ import csv
 
 import pytest
 
-from physrover.cli import main
-from physrover.compare import compare_samples, parse_compare
+from physrover.analysis.tables import compare_samples, parse_compare
+from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig
 from physrover.learn.ccea import stats_header
 

@@ -22,7 +22,7 @@ import hashlib
 import os
 from pathlib import Path
 
-_PACKAGE = Path(__file__).parent
+_PACKAGE = Path(__file__).parent.parent  # physrover/, above this wing
 _cache_dir: str | None = None
 
 

@@ -7,7 +7,7 @@ differs between the runs given (and each field named in ``by``), e.g.
 ``max-critic n_req=3 generations=2000``; a bare method name when only the method differs.
 Within a group each run is one sample (one seed). The interval is the Student-t 95% interval
 of the mean, ``mean +- t_{0.975, n-1} * sd / sqrt(n)``; the tables and the CSV keep it raw
-(:mod:`physrover.plots` draws it clipped to the possible range of G).
+(:mod:`physrover.analysis.plots` draws it clipped to the possible range of G).
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from physrover.config import ConfigError, DomainConfig, LearnConfig
-from physrover.runs import METRICS, load_run_config, read_metrics
-from physrover.stats import mean_ci
+from physrover.core.stats import mean_ci
+from physrover.experiment.store import METRICS, load_run_config, read_metrics
 
 NOT_GROUPED = ("seed", "checkpoint_every")
 """Config fields in which runs of one group may differ: the seed (each run is one sample)

@@ -92,7 +92,7 @@ class RoverEnv(gymnasium.Env):
 
     ## Rendering
     ``render_mode="rgb_array"``: ``render()`` returns an OpenCV-drawn (H, W, 3) uint8 RGB
-    frame (:mod:`physrover.render`; size from ``render_config``, a ``RenderConfig``) whose
+    frame (:mod:`physrover.viz.render`; size from ``render_config``, a ``RenderConfig``) whose
     view fits the POIs and every position the team has visited so far.
 
     ## Arguments
@@ -127,7 +127,7 @@ class RoverEnv(gymnasium.Env):
         if self.render_mode is None:
             gymnasium.logger.warn("render() needs RoverEnv(render_mode='rgb_array')")
             return None
-        from physrover.render import RenderConfig, world_frame
+        from physrover.viz.render import RenderConfig, world_frame
 
         if self.render_config is None:
             self.render_config = RenderConfig(fps=self.metadata["render_fps"])

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from physrover.config import DomainConfig
-from physrover.envs import RoverVectorEnv
+from physrover.envs.gymnasium_env import RoverVectorEnv
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,7 @@ def time_iteration(config, iterations: int = 3) -> float:
     warm-up iteration), its updates running from the first iteration (``warmup_steps`` 0
     where the trainer has a warm-up, which only collects): the steady state, where a run
     spends nearly all its time. Evaluation episodes are played as the config says."""
-    from physrover.registry import TRAINERS
+    from physrover.core.registry import TRAINERS
 
     trainer_config = config.trainer
     if hasattr(trainer_config, "warmup_steps"):

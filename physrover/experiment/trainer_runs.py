@@ -1,10 +1,10 @@
 """Run directories of the gradient-based trainers (``physrover train --method mappo|maddpg``).
 
-The same layout as a CCEA run (:mod:`physrover.runs`): config.toml (with the trainer's table,
-e.g. ``[mappo]``), metrics.csv, ``champions/gen_N.npy`` (the current policies as CCEA
-genomes, so ``render`` and ``evaluate`` play them), state.npz/state.json (networks,
-optimisers, replay buffer, every generator), and a resumed run bit-identical to an
-uninterrupted one. A row of metrics.csv is one iteration (``generation`` counts
+The same layout as a CCEA run (:mod:`physrover.experiment.store`): config.toml (with the
+trainer's table, e.g. ``[mappo]``), metrics.csv, ``champions/gen_N.npy`` (the current
+policies as CCEA genomes, so ``render`` and ``evaluate`` play them), state.npz/state.json
+(networks, optimisers, replay buffer, every generator), and a resumed run bit-identical to
+an uninterrupted one. A row of metrics.csv is one iteration (``generation`` counts
 iterations, from 1) with the CCEA's columns plus ``episodes`` and ``env_steps``: training
 episodes and team steps so far, the axis ``physrover curves --x episodes`` draws.
 ``fitness_mean`` is NaN (there is none); ``critic_loss`` is the value loss (MAPPO) or the
@@ -17,17 +17,16 @@ import math
 from pathlib import Path
 
 from physrover.config import RunConfig
-from physrover.learn.ccea import stats_header
-from physrover.progress import Progress
-from physrover.registry import TRAINERS
-from physrover.runs import (
-    TensorBoardLog,
+from physrover.core.progress import Progress
+from physrover.core.registry import TRAINERS
+from physrover.experiment.loop import TensorBoardLog, write_rows
+from physrover.experiment.store import (
     load_run_config,
     prepare_run_dir,
     record_provenance,
     resume_run,
-    write_rows,
 )
+from physrover.learn.ccea import stats_header
 
 EXTRA_COLUMNS = ["episodes", "env_steps"]
 

@@ -18,7 +18,7 @@ from gymnasium import spaces
 
 from physrover.config import DomainConfig
 from physrover.domain.world import StartOverrides
-from physrover.envs import RoverEnv, resolve_config
+from physrover.envs.gymnasium_env import RoverEnv, resolve_config
 
 try:
     from pettingzoo import ParallelEnv

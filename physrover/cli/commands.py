@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 from physrover.config import RunConfig, parse_override
-from physrover.registry import FITNESS_METHODS
-from physrover.runs import find_runs, last_checkpoint, load_run_config
-from physrover.threads import pin_threads
+from physrover.core.registry import FITNESS_METHODS
+from physrover.core.threads import pin_threads
+from physrover.experiment.store import find_runs, last_checkpoint, load_run_config
 
 
 class UsageError(Exception):
@@ -57,15 +57,15 @@ def cmd_methods(args: argparse.Namespace) -> int:
     print(f"{'method':{width}}  {'paper':{sections}}  fitness of a policy")
     for name, spec in FITNESS_METHODS.items():
         print(f"{name:{width}}  {spec.section:{sections}}  {spec.summary}")
-    from physrover.registry import TRAINERS
+    from physrover.core.registry import TRAINERS
 
     print("\ngradient-based trainers (their table: [NAME]; length: total_episodes):")
     for name, spec in TRAINERS.items():
         print(f"{name:{width}}  {spec.reference:{sections}}  {spec.summary}")
     print('\nchoose with: physrover train --method NAME  (or [learn] method = "NAME")')
-    from physrover.registry import CREDITS, DYNAMICS, SCENARIOS, SENSORS
+    from physrover.core.registry import CREDITS, DYNAMICS, SCENARIOS, SENSORS
 
-    print("\nthe other seams (physrover.registry; README: Extending physrover):")
+    print("\nthe other seams (physrover.core.registry; README: Extending physrover):")
     for label, registry, how in (
         ("credit signals", CREDITS, "--set feedback=NAME"),
         ("scenarios", SCENARIOS, "--set scenario=NAME"),
@@ -88,7 +88,7 @@ def _interrupted(out: Path) -> str:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from physrover.runs import train
+    from physrover.experiment.training import train
 
     pin_threads(args.threads)
     if args.resume:
@@ -134,7 +134,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from physrover import bench
+    from physrover.experiment import bench
 
     pin_threads(args.threads)
     config = _run_config(args)
@@ -163,7 +163,7 @@ PAPER_SWEEPS = ("experiments/fig4-7-long.toml", "experiments/fig8-9-paper.toml")
 def _bench_paper(args: argparse.Namespace, bench) -> int:
     """Time a few generations of every cell of the sweep files and print what each sweep
     (and all of them) will take on this machine with ``--workers`` processes."""
-    from physrover.sweep import Sweep
+    from physrover.experiment.sweep import Sweep
 
     files = args.sweeps or list(PAPER_SWEEPS)
     grand = 0.0
@@ -185,8 +185,8 @@ def _bench_paper(args: argparse.Namespace, bench) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from physrover.playback import record_run
-    from physrover.render import RenderConfig
+    from physrover.experiment.playback import record_run
+    from physrover.viz.render import RenderConfig
 
     render = RenderConfig(width=args.size, height=args.size, fps=args.fps)
     run_dir = Path(args.run_dir)
@@ -205,7 +205,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from physrover.evaluate import EVAL_SEED, evaluate_run
+    from physrover.experiment.evaluate import EVAL_SEED, evaluate_run
 
     pin_threads(1)
     result = evaluate_run(
@@ -223,7 +223,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_curves(args: argparse.Namespace) -> int:
-    from physrover import plots
+    from physrover.analysis import plots
 
     run_dirs = find_runs(args.run_dirs)
     if not run_dirs:
@@ -242,8 +242,8 @@ def cmd_curves(args: argparse.Namespace) -> int:
 
 
 def cmd_table(args: argparse.Namespace) -> int:
-    from physrover import compare
-    from physrover.curve_data import load_runs
+    from physrover.analysis import tables
+    from physrover.analysis.curve_data import load_runs
 
     run_dirs = find_runs(args.run_dirs)
     if not run_dirs:
@@ -251,32 +251,32 @@ def cmd_table(args: argparse.Namespace) -> int:
     if args.last < 1:
         raise UsageError(f"--last must be >= 1, got {args.last}")
     runs = load_runs(run_dirs, by=tuple(args.by or ()))
-    for message in compare.scored(runs, args.last)[1] + compare.length_messages(runs):
+    for message in tables.scored(runs, args.last)[1] + tables.length_messages(runs):
         print(message, file=sys.stderr)
-    rows = compare.cells(runs, args.last, args.learned)
-    tables = [("cells", rows, compare.CELL_COLUMNS, compare.cells_markdown(rows, args.last))]
+    rows = tables.cells(runs, args.last, args.learned)
+    outputs = [("cells", rows, tables.CELL_COLUMNS, tables.cells_markdown(rows, args.last))]
     if args.compare:
-        field, a, b = compare.parse_compare(args.compare)
-        pairs, skipped = compare.comparisons(runs, field, a, b, args.last, args.learned)
+        field, a, b = tables.parse_compare(args.compare)
+        pairs, skipped = tables.comparisons(runs, field, a, b, args.last, args.learned)
         for message in skipped:
             print(message, file=sys.stderr)
-        markdown = compare.comparisons_markdown(pairs)
-        tables.append(("compare", pairs, compare.COMPARE_COLUMNS, markdown))
-    print("\n".join(markdown for *_, markdown in tables), end="")
+        markdown = tables.comparisons_markdown(pairs)
+        outputs.append(("compare", pairs, tables.COMPARE_COLUMNS, markdown))
+    print("\n".join(markdown for *_, markdown in outputs), end="")
     if args.out:
-        for name, table_rows, columns, markdown in tables:
+        for name, table_rows, columns, markdown in outputs:
             path = Path(f"{args.out}_{name}.csv")
             path.parent.mkdir(parents=True, exist_ok=True)
-            compare.write_csv(table_rows, columns, path)
+            tables.write_csv(table_rows, columns, path)
             path.with_suffix(".md").write_text(markdown)
             print(f"{name}: {path} {path.with_suffix('.md')}", file=sys.stderr)
     return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from physrover import plots
-    from physrover.playback import record_run
-    from physrover.runs import train
+    from physrover.analysis import plots
+    from physrover.experiment.playback import record_run
+    from physrover.experiment.training import train
 
     pin_threads(1)
     base = Path(args.out)
@@ -309,27 +309,28 @@ def _episode_table(scores: list[float], poi_values) -> str:
 
 
 def _seeds(text: str | None) -> int | range | None:
-    """``--seeds`` of sweep and bench paper (:func:`physrover.sweep.parse_seeds`)."""
-    from physrover.sweep import parse_seeds
+    """``--seeds`` of sweep and bench paper (:func:`physrover.experiment.sweep.parse_seeds`)."""
+    from physrover.experiment.sweep import parse_seeds
 
     return None if text is None else parse_seeds(text)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from physrover.sweep import Sweep, run_sweep
+    from physrover.experiment.execute import run_sweep
+    from physrover.experiment.sweep import Sweep
 
     sweep = Sweep.load(args.sweep_file)
     specs = sweep.runs(args.root, seeds=_seeds(args.seeds), drop_state=args.drop_state)
     listed = set()
     if args.skip_listed:
-        from physrover.sweep import listed_finished
+        from physrover.experiment.sweep import listed_finished
 
         listed = listed_finished(specs, args.skip_listed, sweep.name)
         specs = [spec for spec in specs if spec.name not in listed]
         print(f"sweep {sweep.name}: {len(listed)} runs left out, finished in {args.skip_listed}",
               file=sys.stderr)  # fmt: skip
     if args.status:
-        from physrover.sweep import status_report
+        from physrover.experiment.sweep import status_report
 
         print("\n".join(status_report(sweep.name, specs, listed=len(listed))))
         return 0

@@ -17,10 +17,10 @@ World-to-pixel transform (:class:`Transform`): one scale for x and y (equal aspe
 y up on screen, fitted to a box holding every POI with its capture ring and every rover
 position given, plus ``margin`` world units. :func:`draw_frame` fits the trajectory so far
 (so ``RoverEnv.render()`` zooms out as rovers leave and never back in);
-:mod:`physrover.playback` plays a whole episode first and draws every frame (and both
+:mod:`physrover.experiment.playback` plays a whole episode first and draws every frame (and both
 panels of a side-by-side video) with one view that holds the whole episode.
 
-Frame sizes are even (:class:`RenderConfig` requires it): :mod:`physrover.video` writes the
+Frame sizes are even (:class:`RenderConfig` requires it): :mod:`physrover.viz.video` writes the
 frames as H.264 yuv420p MP4 (no hidden padding: a frame is the video's size). Its
 :class:`VideoWriter` and :class:`VideoError` are importable from here too.
 """
@@ -35,7 +35,7 @@ import numpy as np
 
 from physrover.config import ConfigBase, DomainConfig, check
 from physrover.domain.obstacles import box_corners
-from physrover.video import VideoError, VideoWriter
+from physrover.viz.video import VideoError, VideoWriter
 
 BACKGROUND = (246, 246, 246)  # BGR
 POI_FREE = (150, 150, 150)

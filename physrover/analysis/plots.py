@@ -1,10 +1,10 @@
 """Learning curves and final scores with 95% confidence intervals over seeds, as figures.
 
-The numbers come from :mod:`physrover.curve_data` (how runs are grouped, one sample per seed,
-the Student-t 95% interval of the mean); its names are importable from here too. The band is
-drawn clipped to the possible range of G, ``[0, sum of poi_values]``, while the CSV keeps the
-raw interval. Every plot writes the plotted numbers as CSV beside the PNG. matplotlib runs
-with the Agg backend.
+The numbers come from :mod:`physrover.analysis.curve_data` (how runs are grouped, one
+sample per seed, the Student-t 95% interval of the mean); its names are importable from
+here too. The band is drawn clipped to the possible range of G, ``[0, sum of poi_values]``,
+while the CSV keeps the raw interval. Every plot writes the plotted numbers as CSV beside
+the PNG. matplotlib runs with the Agg backend.
 
 For the command line, :func:`make_curves` and :func:`make_final` do everything (load, group,
 tabulate, plot, CSV) and return a :class:`Plot` with the paths and the messages to show.
@@ -19,8 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.config import ConfigError
-from physrover.curve_data import (
+from physrover.analysis.curve_data import (
     CURVE_COLUMNS,
     NOT_GROUPED,
     Run,
@@ -34,7 +33,8 @@ from physrover.curve_data import (
     training_episodes,
     write_csv,
 )
-from physrover.stats import mean_ci, t975
+from physrover.config import ConfigError
+from physrover.core.stats import mean_ci, t975
 
 # ----------------------------------------------------------------------------------------------
 # Figures
@@ -112,7 +112,7 @@ def curve_legend(group: str, cols: dict) -> str:
     """A curve's legend entry: ``group (n=runs)``, plus the smoothing when there is some,
     e.g. ``max-critic (n=1, 20-generation moving mean)`` (``20-iteration`` for a
     gradient-based trainer, whose rows are iterations)."""
-    from physrover.registry import TRAINERS
+    from physrover.core.registry import TRAINERS
 
     smooth = int(cols.get("smooth", 1))
     unit = "iteration" if cols.get("method") in TRAINERS else "generation"
@@ -260,7 +260,7 @@ def make_final(
     return Plot(png, png.with_suffix(".csv"), table, list(table.messages))
 
 
-__all__ = [  # with what physrover.curve_data computes, as this module had it before
+__all__ = [  # with what physrover.analysis.curve_data computes, as this module had it before
     "CURVE_COLUMNS",
     "METHOD_COLOURS",
     "NOT_GROUPED",

@@ -22,10 +22,10 @@ null. Both are taken once per process, when its first run starts. ``llvm_cpu`` a
 ``cpu_features`` (a digest of the features numba compiles for) say what the kernels were
 compiled for. ``imports`` (only when there are any) lists the researcher's own modules
 loaded by ``--import``, ``PHYSROVER_IMPORT`` or a sweep's ``imports``
-(:mod:`physrover.plugins`), each with its file and the digest of its source. A resume
+(:mod:`physrover.core.plugins`), each with its file and the digest of its source. A resume
 with other code, or for another ``llvm_cpu`` or ``cpu_features``,
-than the last segment's warns (:func:`with_segment`; :func:`physrover.runs.record_provenance`
-writes the file).
+than the last segment's warns (:func:`with_segment`;
+:func:`physrover.experiment.store.record_provenance` writes the file).
 """
 
 from __future__ import annotations
@@ -40,16 +40,16 @@ import warnings
 from importlib import metadata
 from pathlib import Path
 
-from physrover import plugins
-from physrover.compiled import source_digest
+from physrover.core import plugins
+from physrover.core.compiled import source_digest
 
 PROVENANCE = "provenance.json"
-PACKAGE_DIR = Path(__file__).resolve().parent
+PACKAGE_DIR = Path(__file__).resolve().parent.parent  # physrover/, above this wing
 
 
 @functools.cache
 def code_fingerprint() -> str | None:
-    """:func:`physrover.compiled.source_digest` of this installed physrover package (None
+    """:func:`physrover.core.compiled.source_digest` of this installed physrover package (None
     if it has no ``.py`` sources to read), taken once per process."""
     return source_digest(PACKAGE_DIR) or None
 

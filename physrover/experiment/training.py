@@ -1,0 +1,93 @@
+"""Training a run: :func:`train` starts a run in a new (or empty) directory, or continues one
+with ``resume=True``; a resumed run ends bit-identical to an uninterrupted one with the same
+seed. The CCEA trains here; a gradient-based trainer's run goes to
+:mod:`physrover.experiment.trainer_runs`. Both use the store
+(:mod:`physrover.experiment.store`) and the loop (:mod:`physrover.experiment.loop`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+
+from physrover.config import ConfigError, RunConfig
+from physrover.core.progress import Progress
+from physrover.experiment.loop import TensorBoardLog, write_rows
+from physrover.experiment.store import (
+    CONFIG,
+    atomic_write,
+    load_run_config,
+    prepare_run_dir,
+    record_provenance,
+    resume_run,
+)
+from physrover.learn.ccea import CCEA, GenerationStats, stats_header
+
+
+def _kernels_cached() -> bool:
+    """Whether numba has cached this version's compiled kernels on disk (else the first
+    generation compiles): their cache index files (``*.nbi``) under
+    :func:`physrover.core.compiled.cache_dir`."""
+    from physrover.core.compiled import cache_dir
+
+    place = Path(cache_dir())
+    return place.is_dir() and next(place.rglob("*kernels*.nbi"), None) is not None
+
+
+def train(
+    config: RunConfig | None,
+    out: str | Path,
+    *,
+    resume: bool = False,
+    generations: int | None = None,
+    progress: bool = True,
+    tensorboard: bool = False,
+    on_generation: Callable[[GenerationStats], None] | None = None,
+) -> Path:
+    """Train (or continue) a run in ``out`` up to ``generations`` (default: the config's).
+
+    With ``resume``, ``config`` is ignored and read from ``out``; the run continues from its
+    last checkpoint (dropping metrics rows written after it) up to ``generations``. With
+    ``tensorboard``, every metrics row is also written as TensorBoard scalars under
+    ``out/tensorboard`` (needs ``pip install 'physrover[tensorboard]'``).
+    """
+    out = Path(out)
+    if resume:
+        config = load_run_config(out)
+        if generations is not None and generations != config.learn.generations:
+            config = config.with_overrides({"generations": generations})
+            atomic_write(out / CONFIG, config.to_toml())
+    else:
+        if config is None:
+            raise ConfigError("config", "a config is needed to start a run")
+        if generations is not None:
+            config = config.with_overrides({"generations": generations})
+    if config.trainer is not None:  # a gradient-based baseline, not the CCEA
+        from physrover.experiment.trainer_runs import train_trainer
+
+        return train_trainer(config, out, resume=resume, progress=progress,
+                             tensorboard=tensorboard)  # fmt: skip
+    if not resume:
+        prepare_run_dir(out, config)
+    log = TensorBoardLog(out) if tensorboard else None
+    total = config.learn.generations
+    bar = Progress(total, f"{config.learn.method} gen", unit="gen") if progress else None
+    if bar:  # the first world reset and generation compile (or load) the kernels
+        bar.warm_up("loading compiled kernels" if _kernels_cached()
+                    else "compiling kernels, first run only")  # fmt: skip
+    ccea = CCEA(config)
+    rows = resume_run(out, ccea, stats_header()) if resume else []
+    record_provenance(out, ccea.generation, total)
+
+    latest: list[GenerationStats] = []
+
+    def next_row() -> dict:
+        latest[:] = [ccea.run_generation()]
+        return asdict(latest[0])
+
+    after = (lambda: on_generation(latest[0])) if on_generation else None
+    write_rows(out, ccea, next_row, stats_header(), rows, total,
+               config.learn.checkpoint_every, log, bar, restart_clock=True,
+               after_row=after)  # fmt: skip
+    return out
