@@ -267,6 +267,19 @@ def test_final_numbers_by_field(tmp_path, figures):
     assert [(r["n_req"], r["mean"], r["n"]) for r in rows] == [("3", "2.5", "2"), ("5", "0.5", "1")]
 
 
+def test_final_against_a_field_that_is_not_a_number_is_a_one_line_error(tmp_path, capsys):
+    from physrover.cli import main
+
+    runs = [_fake_run(tmp_path, "a", "D", 3, [1.0]), _fake_run(tmp_path, "b", "G", 3, [2.0])]
+    with pytest.raises(ConfigError, match="method: --final draws .* against a number, and "
+                       "method is 'D'; --by method"):  # fmt: skip
+        final_table(load_runs(runs, x="method"), "method")
+    assert main(["curves", str(tmp_path), "--final", "method"]) == 2  # before: a traceback
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("physrover: error: method: --final"), err
+    assert not (tmp_path / "final_method.png").exists()
+
+
 def test_a_method_keeps_its_colour_across_figures():
     from physrover.core.registry import FITNESS_METHODS as METHODS
 

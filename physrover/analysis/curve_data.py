@@ -264,6 +264,11 @@ def final_table(runs: list[Run], x: str, last: int = 1) -> Table:
     for run in runs:
         if x not in run.fields:
             raise ConfigError(x, "not a config field (--final)")
+        value = run.fields[x]
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            hint = f"--by {x} groups the curves by it instead"
+            raise ConfigError(x, f"--final draws the final score against a number, and {x} "
+                              f"is {value!r}; {hint}")  # fmt: skip
         if len(run.eval_G):
             cells[run.group][run.fields[x]].append(run)
         else:
