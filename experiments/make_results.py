@@ -31,8 +31,10 @@ import numpy as np
 
 from physrover.analysis import plots
 from physrover.analysis.curve_data import Table, final_score, scores_table
+from physrover.analysis.results import is_finished as _finished
+from physrover.analysis.results import kept_rows as _kept_finals
+from physrover.analysis.results import provenance_columns
 from physrover.experiment.evaluate import motion_model
-from physrover.experiment.provenance import read_provenance
 from physrover.experiment.store import find_runs, read_metrics
 
 OUT = Path("experiments/results")
@@ -133,29 +135,6 @@ def _max_critic_at(n_req: int, episodes: int) -> str:
     return "n/a"
 
 
-def provenance_columns(run_dir: Path) -> dict[str, str]:
-    """runs.csv's ``code`` and ``cpu`` of a run from its provenance.json: the first 12 hex
-    digits of each distinct source fingerprint its segments were trained with, and each
-    distinct CPU numba compiled for, in order, joined by ``+``; ``?+`` in front when the
-    generations before the first segment are of unknown code (a run begun before runs
-    recorded provenance); both empty for a run with no provenance.json."""
-    segments = read_provenance(run_dir)
-    if not segments:
-        return {"code": "", "cpu": ""}
-    unknown = "?+" if segments[0]["from_generation"] > 0 else ""
-    codes = dict.fromkeys((s["code"] or "?")[:12] for s in segments)
-    cpus = dict.fromkeys(s.get("llvm_cpu") or "?" for s in segments)
-    return {"code": unknown + "+".join(codes), "cpu": unknown + "+".join(cpus)}
-
-
-def _finished(run_dir: Path) -> bool:
-    """Whether a run (CCEA or trainer) reached the length its config asks for."""
-    from physrover.experiment.sweep import RunSpec, run_status
-
-    spec = RunSpec(run_dir.name, (run_dir / "config.toml").read_text(), str(run_dir))
-    return run_status(spec) == "done"
-
-
 def _column(row: dict, field: str):
     """A runs.csv value as the config field's type (ints for n_req, n_rovers, seed)."""
     value = row[field]
@@ -167,16 +146,6 @@ POOLED = ("fig8-9-paper", "physics-long-mean")
 docstring): the ones run in chunks of seeds across machines."""
 POOLED_LAST = 50
 """The ``--last`` of the committed rows' final scores; another ``--last`` pools nothing."""
-
-
-def _kept_finals(rows: list[dict], sweep: str, found: list[plots.Run]) -> list[dict]:
-    """The rows of runs.csv of ``sweep``'s finished runs that are not among the ``found``
-    finished run directories, one per run (a row's run is finished when it has the most
-    generations of any run of the sweep, found or kept)."""
-    names = {run.path.name for run in found}
-    mine = {row["run"]: row for row in rows if row["sweep"] == sweep and row["run"] not in names}
-    full = max([len(run.eval_G) for run in found] + [int(r["generations"]) for r in mine.values()])
-    return [row for row in mine.values() if int(row["generations"]) == full]
 
 
 def _final_scores(runs: list[plots.Run], rows: list[dict], x: str, last: int,

@@ -273,6 +273,24 @@ def cmd_table(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_results(args: argparse.Namespace) -> int:
+    from physrover.analysis.results import write_results
+
+    sweeps = [Path(d) for d in args.sweep_dirs]
+    for path in sweeps:
+        if not path.is_dir():
+            raise UsageError(f"{path} is not a directory")
+    if args.last < 1 or args.smooth < 1:
+        raise UsageError("--last and --smooth must be >= 1")
+    out = Path(args.out) if args.out else sweeps[0].parent / "results"
+    results, messages = write_results(sweeps, out, args.last, args.smooth)
+    for message in messages:
+        print(message, file=sys.stderr)
+    rows = sum(len(r.rows) for r in results)
+    print(f"results of {len(results)} sweep(s), {rows} runs: {out}")
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from physrover.analysis import plots
     from physrover.experiment.playback import record_run

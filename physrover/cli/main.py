@@ -23,6 +23,7 @@ from physrover.cli.commands import (
     cmd_info,
     cmd_methods,
     cmd_render,
+    cmd_results,
     cmd_sweep,
     cmd_table,
     cmd_train,
@@ -170,6 +171,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="PREFIX", help="also write PREFIX_cells.csv/.md "
                    "(and PREFIX_compare.csv/.md)")  # fmt: skip
     p.set_defaults(func=cmd_table)
+
+    p = sub.add_parser(
+        "results",
+        help="a sweep's runs.csv, cells table and figures, pooling earlier machines' rows",
+        description="For each sweep directory: runs.csv (a row per finished run: its grid "
+        "values, seed, final score, wall time, code and CPU), cells.md/.csv (final score "
+        "+- 95%% CI per cell of the grid), learning curves and final score against each "
+        "numeric grid field. Rows of OUT/runs.csv of finished runs not found on disk (a "
+        "sweep run in chunks of seeds on other machines) are pooled in.",
+    )
+    p.add_argument("sweep_dirs", nargs="+", help="sweep directories (ROOT/NAME of physrover "
+                   "sweep)")  # fmt: skip
+    p.add_argument("--out", help="where to write (default: results/ beside the first sweep)")
+    p.add_argument("--last", type=int, default=50, help="final score: mean of the last N "
+                   "generations (default 50)")  # fmt: skip
+    p.add_argument("--smooth", type=int, default=20, help="moving mean of the learning "
+                   "curves, in generations (default 20)")  # fmt: skip
+    p.set_defaults(func=cmd_results)
 
     p = sub.add_parser("demo", help="short max-critic training, then a curve and a video")
     p.add_argument("--generations", type=int, default=2000, help="generations (default 2000)")

@@ -1,0 +1,96 @@
+"""physrover results: a sweep's runs.csv, cells and figures, rebuilt from its run
+directories, pooling the rows of earlier machines (a sweep run in chunks of seeds)."""
+
+import csv
+import math
+
+import pytest
+from test_make_results import SWEEP, _fake_runs
+
+from physrover.cli import main
+from physrover.core.stats import t975
+from physrover.experiment.sweep import Sweep
+
+
+@pytest.fixture
+def sweep(tmp_path):
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP.replace('"fig8-9-paper"', '"grid"'))
+    return Sweep.load(path)
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _results(root, out, capsys=None):
+    assert main(["results", str(root / "grid"), "--out", str(out)]) == 0
+
+
+def test_runs_cells_and_figures_of_a_sweep(tmp_path, sweep, capsys):
+    _fake_runs(sweep, tmp_path / "root", None)  # 2 methods x 2 team sizes x 4 seeds
+    _results(tmp_path / "root", tmp_path / "out")
+    rows = _rows(tmp_path / "out" / "runs.csv")
+    assert len(rows) == 16
+    assert list(rows[0])[:5] == ["sweep", "run", "method", "n_rovers", "seed"]
+    # a run's final score is seed + n_rovers / 10 (+ 5 for the max critic): test_make_results
+    for row in rows:
+        expected = int(row["seed"]) + int(row["n_rovers"]) / 10 + 5 * (row["method"] != "D")
+        assert float(row["final_G"]) == pytest.approx(expected)
+        assert row["generations"] == "60" and float(row["max_eval_G"]) == expected + 0.5
+    # max-critic at 4 rovers: 5.4, 6.4, 7.4, 8.4; sd = sqrt(5/3), half-width t(3) sd / 2
+    half = t975(3) * math.sqrt(5 / 3) / 2
+    assert (
+        f"| max-critic | 4 | {6.9:.2f} +- {half:.2f} | 4 |"
+        in (tmp_path / "out" / "cells.md").read_text()
+    )
+    cells = {r["cell"]: r for r in _rows(tmp_path / "out" / "cells.csv")}
+    assert float(cells["max-critic 4"]["ci95_half_width"]) == pytest.approx(half)
+    assert float(cells["D 3"]["mean"]) == pytest.approx(1.8) and cells["D 3"]["n"] == "4"
+    final = {
+        (r["group"], r["n_rovers"]): r
+        for r in _rows(tmp_path / "out" / "grid_final_vs_n_rovers.csv")
+    }
+    assert float(final["D", "3"]["mean"]) == pytest.approx(1.8) and final["D", "3"]["n"] == "4"
+    assert float(final["max-critic", "4"]["ci95_half_width"]) == pytest.approx(half)
+    assert (tmp_path / "out" / "grid_curves.png").stat().st_size > 0
+    assert (tmp_path / "out" / "grid_final_vs_n_rovers.png").stat().st_size > 0
+
+
+def test_chunks_of_seeds_on_two_machines_equal_the_whole_sweep(tmp_path, sweep, capsys):
+    _fake_runs(sweep, tmp_path / "whole", None)
+    _results(tmp_path / "whole", tmp_path / "whole-out")
+    _fake_runs(sweep, tmp_path / "first", range(0, 2))  # machine 1: seeds 0-1
+    _results(tmp_path / "first", tmp_path / "out")
+    _fake_runs(sweep, tmp_path / "second", range(2, 4))  # machine 2: seeds 2-3 + the files
+    capsys.readouterr()
+    _results(tmp_path / "second", tmp_path / "out")
+    assert "8 finished runs of earlier machines pooled" in capsys.readouterr().err
+    for name in ("runs.csv", "cells.md", "cells.csv", "grid_final_vs_n_rovers.csv"):
+        assert (tmp_path / "out" / name).read_text() == (tmp_path / "whole-out" / name).read_text()
+    # the learning curves need the runs themselves: machine 2's are its own two seeds
+    curves = _rows(tmp_path / "out" / "grid_curves.csv")
+    assert {r["n"] for r in curves} == {"2"}
+
+
+def test_unfinished_runs_are_left_out_and_said_so(tmp_path, sweep, capsys):
+    _fake_runs(sweep, tmp_path / "root", range(0, 2))
+    going = sorted((tmp_path / "root" / "grid").glob("*_seed=1"))
+    for run in going:
+        (run / "state.json").write_text('{"generation": 20}')
+    _results(tmp_path / "root", tmp_path / "out")
+    assert "4 of 8 runs are not finished and are left out" in capsys.readouterr().err
+    assert {r["seed"] for r in _rows(tmp_path / "out" / "runs.csv")} == {"0"}
+
+
+def test_errors_are_one_line(tmp_path, capsys):
+    assert main(["results", str(tmp_path / "missing")]) == 2
+    (tmp_path / "empty").mkdir()
+    assert main(["results", str(tmp_path / "empty")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"physrover: error: {tmp_path / 'missing'} is not a directory",
+        f"physrover: error: {tmp_path / 'empty'}: no finished run (nor earlier rows of sweep "
+        "empty)",
+    ]
