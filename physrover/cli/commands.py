@@ -65,7 +65,7 @@ def cmd_methods(args: argparse.Namespace) -> int:
     print('\nchoose with: physrover train --method NAME  (or [learn] method = "NAME")')
     from physrover.core.registry import CREDITS, DYNAMICS, SCENARIOS, SENSORS
 
-    print("\nthe other seams (physrover.core.registry; README: Extending physrover):")
+    print("\nthe other seams (physrover.core.registry; docs/extending.md):")
     for label, registry, how in (
         ("credit signals", CREDITS, "--set feedback=NAME"),
         ("scenarios", SCENARIOS, "--set scenario=NAME"),

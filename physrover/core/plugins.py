@@ -1,7 +1,7 @@
 """A researcher's own parts on the command line: modules imported before a command runs.
 
 A scenario, sensor, motion model, credit signal, fitness method or trainer of one's own is
-registered when its module is imported (README: Extending physrover). From Python that is
+registered when its module is imported (docs/extending.md). From Python that is
 an ``import``; for ``physrover`` it is ``physrover --import SPEC COMMAND ...``, a sweep
 file's ``[sweep] imports = [SPEC, ...]``, or the ``PHYSROVER_IMPORT`` environment variable
 (SPECs joined by ``os.pathsep``, ``:`` on Linux and macOS). A SPEC is
