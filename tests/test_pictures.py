@@ -109,6 +109,19 @@ def test_a_write_failure_names_the_file():
                 video.write(np.zeros((64, 64, 3), dtype=np.uint8))
 
 
+def test_a_failed_recording_leaves_the_previous_video_in_place(tmp_path):
+    path = tmp_path / "good.mp4"
+    with VideoWriter(path, 64, 64, 10) as video:
+        video.write(np.zeros((64, 64, 3), dtype=np.uint8))
+    good = path.read_bytes()
+    with pytest.raises(RuntimeError, match="interrupted"):
+        with VideoWriter(path, 64, 64, 10) as video:
+            video.write(np.full((64, 64, 3), 255, dtype=np.uint8))
+            raise RuntimeError("interrupted")
+    assert path.read_bytes() == good  # before: overwritten by the unfinished file
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["good.mp4"]  # no .partial left
+
+
 def test_a_short_file_is_detected(tmp_path):
     video = VideoWriter(tmp_path / "z.mp4", 64, 64, 10)
     video.write(np.zeros((64, 64, 3), dtype=np.uint8))

@@ -280,6 +280,13 @@ def test_final_against_a_field_that_is_not_a_number_is_a_one_line_error(tmp_path
     assert not (tmp_path / "final_method.png").exists()
 
 
+def test_a_whole_number_field_gets_whole_ticks(tmp_path, figures):
+    runs = [_fake_run(tmp_path, "a", "D", 3, [1.0]), _fake_run(tmp_path, "b", "D", 4, [2.0])]
+    plots.make_final(runs, "n_req", tmp_path / "final.png")
+    ticks = [t for t in figures[0].axes[0].get_xticks() if 3 <= t <= 4]
+    assert ticks == [3, 4]  # before: 3.0, 3.2, 3.4, ...
+
+
 def test_a_method_keeps_its_colour_across_figures():
     from physrover.core.registry import FITNESS_METHODS as METHODS
 

@@ -43,7 +43,7 @@ def test_train_writes_a_run_directory_the_other_commands_read(method, tmp_path, 
     assert segment["from_generation"] == 0 and segment["code"] == code_fingerprint()
     capsys.readouterr()
     assert main(["train", "--resume", str(out)]) == 0
-    assert "is finished: 4 iterations" in capsys.readouterr().out
+    assert "is already at 4 iterations; to extend it: " in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("method", ["mappo", "maddpg"])

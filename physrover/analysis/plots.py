@@ -164,6 +164,11 @@ def plot_final(table: dict, out: Path, x: str, title: str = "", last: int | None
             color=colours[group],
         )
     _max_g_lines(ax, table)
+    values = np.concatenate([np.asarray(cols["x"], dtype=float) for cols in table.values()] or [[]])
+    if len(values) and np.all(values == np.round(values)):  # n_req, n_rovers: whole ticks
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel({"n_req": "Coupling (n_req)", "n_rovers": "Number of rovers"}.get(x, x))
     if last is not None:
         what = "last generation" if last <= 1 else f"mean of the last {last} generations"
@@ -223,6 +228,15 @@ class Plot:
     messages: list[str] = field(default_factory=list)
 
 
+def _with_rows(runs: list[Run]) -> list[Run]:
+    """``runs``, or a ConfigError naming them when none has a metrics row yet (an empty
+    figure would say nothing)."""
+    if not any(len(run.eval_G) for run in runs):
+        names = ", ".join(str(run.path) for run in runs[:3]) + (" ..." if len(runs) > 3 else "")
+        raise ConfigError("runs", f"no generation in {names} yet: nothing to draw")
+    return runs
+
+
 def make_curves(
     run_dirs: list[str | Path],
     out: str | Path | None = None,
@@ -235,7 +249,7 @@ def make_curves(
     """Learning curves of ``run_dirs`` (``physrover curves``): group, tabulate, draw to
     ``out`` (default :func:`default_out`) with the CSV beside it, against generations or
     training episodes (``x``). ``title`` None: the :func:`default_title` of the runs."""
-    runs = load_runs(run_dirs, by=by)
+    runs = _with_rows(load_runs(run_dirs, by=by))
     table = curve_table(runs, smooth=smooth)
     png = Path(out) if out else default_out(run_dirs)
     plot_curves(table, png, default_title(runs) if title is None else title, x=x)
@@ -253,7 +267,7 @@ def make_final(
 ) -> Plot:
     """Final score against config field ``x`` (``physrover curves --final X``), like
     :func:`make_curves`; default output ``final_X.png`` (:func:`default_out`)."""
-    runs = load_runs(run_dirs, by=by, x=x)
+    runs = _with_rows(load_runs(run_dirs, by=by, x=x))
     table = final_table(runs, x, last=last)
     png = Path(out) if out else default_out(run_dirs, x)
     plot_final(table, png, x, default_title(runs) if title is None else title, last=last)

@@ -9,13 +9,14 @@ prints either as one line, never as a traceback.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
 from physrover.config import RunConfig, parse_override
 from physrover.core.registry import FITNESS_METHODS
 from physrover.core.threads import pin_threads
-from physrover.experiment.store import find_runs, last_checkpoint, load_run_config
+from physrover.experiment.store import last_checkpoint, load_run_config
 
 
 class UsageError(Exception):
@@ -39,11 +40,35 @@ def _run_config(args: argparse.Namespace) -> RunConfig:
         ("collisions", "collisions"),
         ("method", "method"),
         ("seed", "seed"),
-        ("generations", "generations"),
     ):
         if getattr(args, flag, None) is not None:
             overrides[field] = getattr(args, flag)
-    return config.with_overrides(overrides)
+    config = config.with_overrides(overrides)
+    for unit in ("generation", "iteration"):  # the length, in the learner's own unit
+        n = getattr(args, f"{unit}s", None)
+        if n is not None:
+            config = config.with_length(n, unit)
+    return config
+
+
+def _default_out(config: RunConfig, args: argparse.Namespace) -> Path:
+    """``runs/METHOD_MOTION_nreqN_seedS``, then each ``--set FIELD=VALUE`` given (so a run
+    of another config never lands in a run of this one's folder), or the next free name
+    (``-2``, ``-3``, ...) where that folder holds a run already."""
+    cfg = config.learn
+    n_req = "-".join(map(str, config.domain.n_req_per_poi))
+    if len(set(config.domain.n_req_per_poi)) == 1:
+        n_req = str(config.domain.n_req_per_poi[0])
+    name = f"{cfg.method}_{config.domain.motion}_nreq{n_req}_seed{cfg.seed}"
+    for text in sorted(getattr(args, "set", None) or []):
+        field, value = (part.strip() for part in text.split("=", 1))
+        name += "_" + re.sub(r"[^\w.,+=-]", "", f"{field}={value}")
+    base = out = Path("runs") / name
+    n = 1
+    while out.exists() and (not out.is_dir() or any(out.iterdir())):
+        n += 1
+        out = base.with_name(f"{base.name}-{n}")
+    return out
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -76,13 +101,14 @@ def cmd_methods(args: argparse.Namespace) -> int:
     return 0
 
 
-def _interrupted(out: Path) -> str:
-    """What a Ctrl-C left in run directory ``out`` and how to continue."""
+def _interrupted(out: Path, unit: str = "generation") -> str:
+    """What a Ctrl-C left in run directory ``out`` and how to continue (``unit``: what the
+    run counts, generations or a trainer's iterations)."""
     saved = last_checkpoint(out)
     what = (
-        f"saved: the checkpoint after generation {saved}"
+        f"saved: the checkpoint after {unit} {saved}"
         if saved is not None
-        else "nothing saved yet (the first checkpoint comes after checkpoint_every generations)"
+        else f"nothing saved yet (the first checkpoint comes after checkpoint_every {unit}s)"
     )
     return f"interrupted; {what}. Continue with: physrover train --resume {out}"
 
@@ -94,41 +120,33 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.resume:
         given = [args.config, args.set, args.method, args.n_req, args.motion, args.seed, args.out]
         if any(v is not None for v in given):
-            raise UsageError(
-                "--resume continues a run with its own config; only --generations applies"
-            )
+            raise UsageError("--resume continues a run with its own config; only --generations "
+                             "(or a trainer's --iterations) applies")  # fmt: skip
         out = Path(args.resume)
-        run_config = load_run_config(out)
-        target = run_config.length
-        if args.generations and run_config.trainer is None:
-            target = args.generations
+        config = load_run_config(out)
+        length = args.generations if args.generations is not None else args.iterations
+        if length is not None:
+            config = config.with_length(length, "generation" if args.generations else "iteration")
         done = last_checkpoint(out)
-        if done is not None and done >= target:
-            if run_config.trainer is not None:
-                print(f"{out} is finished: {done} iterations, its total_episodes")
-                return 0
-            print(
-                f"{out} is already at {done} generations; to extend it: "
-                f"physrover train --resume {out} --generations {done + 1000}"
-            )
+        if done is not None and done >= config.length:
+            flag = f"--{config.unit}s"
+            print(f"{out} is already at {done} {config.unit}s; to extend it: "
+                  f"physrover train --resume {out} {flag} {done + 1000}")  # fmt: skip
             return 0
     else:
         config = _run_config(args)
-        cfg = config.learn
-        n_req = "-".join(map(str, config.domain.n_req_per_poi))
-        if len(set(config.domain.n_req_per_poi)) == 1:
-            n_req = str(config.domain.n_req_per_poi[0])
-        out = Path(
-            args.out or f"runs/{cfg.method}_{config.domain.motion}_nreq{n_req}_seed{cfg.seed}"
-        )
+        out = Path(args.out) if args.out else _default_out(config, args)
+        if not args.out:
+            print(f"run directory: {out}", file=sys.stderr)  # a name of its own: say it first
     try:
         if args.resume:
             train(None, out, resume=True, generations=args.generations,
-                  progress=not args.quiet, tensorboard=args.tensorboard)  # fmt: skip
+                  iterations=args.iterations, progress=not args.quiet,
+                  tensorboard=args.tensorboard)  # fmt: skip
         else:
             train(config, out, progress=not args.quiet, tensorboard=args.tensorboard)
     except KeyboardInterrupt:
-        raise Interrupted(_interrupted(out)) from None
+        raise Interrupted(_interrupted(out, config.unit)) from None
     print(f"run directory: {out}")
     return 0
 
@@ -200,7 +218,11 @@ def cmd_render(args: argparse.Namespace) -> int:
         side_by_side=args.side_by_side,
         render=render,
     )
-    print(f"video: {path}  (G per episode: {', '.join(f'{g:g}' for g in scores)})")
+    if args.side_by_side:  # the scores alternate ideal, physics: a table, as demo prints
+        config = load_run_config(run_dir)
+        print(f"video: {path}\n{_episode_table(scores, config.domain.poi_values)}")
+    else:
+        print(f"video: {path}  (G per episode: {', '.join(f'{g:g}' for g in scores)})")
     return 0
 
 
@@ -219,75 +241,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     print(result.line())
     if args.out:
         print(f"per-episode G: {result.write_csv(args.out)}")
-    return 0
-
-
-def cmd_curves(args: argparse.Namespace) -> int:
-    from physrover.analysis import plots
-
-    run_dirs = find_runs(args.run_dirs)
-    if not run_dirs:
-        raise UsageError("no run directories (with config.toml) found")
-    by, title = tuple(args.by or ()), args.title or None
-    if args.final:
-        result = plots.make_final(run_dirs, args.final, args.out, by=by, last=args.last,
-                                  title=title)  # fmt: skip
-    else:
-        result = plots.make_curves(run_dirs, args.out, by=by, smooth=args.smooth, title=title,
-                                   x=args.x)  # fmt: skip
-    for message in result.messages:
-        print(message, file=sys.stderr)
-    print(f"plot: {result.png}\nnumbers: {result.csv}")
-    return 0
-
-
-def cmd_table(args: argparse.Namespace) -> int:
-    from physrover.analysis import tables
-    from physrover.analysis.curve_data import load_runs
-
-    run_dirs = find_runs(args.run_dirs)
-    if not run_dirs:
-        raise UsageError("no run directories (with config.toml) found")
-    if args.last < 1:
-        raise UsageError(f"--last must be >= 1, got {args.last}")
-    runs = load_runs(run_dirs, by=tuple(args.by or ()))
-    for message in tables.scored(runs, args.last)[1] + tables.length_messages(runs):
-        print(message, file=sys.stderr)
-    rows = tables.cells(runs, args.last, args.learned)
-    outputs = [("cells", rows, tables.CELL_COLUMNS, tables.cells_markdown(rows, args.last))]
-    if args.compare:
-        field, a, b = tables.parse_compare(args.compare)
-        pairs, skipped = tables.comparisons(runs, field, a, b, args.last, args.learned)
-        for message in skipped:
-            print(message, file=sys.stderr)
-        markdown = tables.comparisons_markdown(pairs)
-        outputs.append(("compare", pairs, tables.COMPARE_COLUMNS, markdown))
-    print("\n".join(markdown for *_, markdown in outputs), end="")
-    if args.out:
-        for name, table_rows, columns, markdown in outputs:
-            path = Path(f"{args.out}_{name}.csv")
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tables.write_csv(table_rows, columns, path)
-            path.with_suffix(".md").write_text(markdown)
-            print(f"{name}: {path} {path.with_suffix('.md')}", file=sys.stderr)
-    return 0
-
-
-def cmd_results(args: argparse.Namespace) -> int:
-    from physrover.analysis.results import write_results
-
-    sweeps = [Path(d) for d in args.sweep_dirs]
-    for path in sweeps:
-        if not path.is_dir():
-            raise UsageError(f"{path} is not a directory")
-    if args.last < 1 or args.smooth < 1:
-        raise UsageError("--last and --smooth must be >= 1")
-    out = Path(args.out) if args.out else sweeps[0].parent / "results"
-    results, messages = write_results(sweeps, out, args.last, args.smooth)
-    for message in messages:
-        print(message, file=sys.stderr)
-    rows = sum(len(r.rows) for r in results)
-    print(f"results of {len(results)} sweep(s), {rows} runs: {out}")
     return 0
 
 
@@ -337,7 +290,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from physrover.experiment.execute import run_sweep
     from physrover.experiment.sweep import Sweep
 
-    sweep = Sweep.load(args.sweep_file)
+    sweep = Sweep.load(args.sweep_file).with_overrides(
+        dict(parse_override(text) for text in args.set or [])
+    )
     specs = sweep.runs(args.root, seeds=_seeds(args.seeds), drop_state=args.drop_state)
     listed = set()
     if args.skip_listed:
@@ -365,9 +320,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             "sweep interrupted; finished runs are kept and the others resume from their last "
             f"checkpoint when you run it again: {again}"
         ) from None
+    ran = len(report.finished)
     print(
-        f"sweep {sweep.name}: {len(report.finished)} run, {report.skipped} already done, "
-        f"{len(report.failed)} failed, {report.seconds:.0f} s"
+        f"sweep {sweep.name}: {ran} run{'s' * (ran != 1)} trained, {report.skipped} already "
+        f"done, {len(report.failed)} failed, {report.seconds:.0f} s"
     )
     for name, error in report.failed.items():
         print(f"  failed: {name}: {error}", file=sys.stderr)

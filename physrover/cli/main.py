@@ -17,17 +17,15 @@ from physrover.cli.commands import (
     Interrupted,
     UsageError,
     cmd_bench,
-    cmd_curves,
     cmd_demo,
     cmd_evaluate,
     cmd_info,
     cmd_methods,
     cmd_render,
-    cmd_results,
     cmd_sweep,
-    cmd_table,
     cmd_train,
 )
+from physrover.cli.reports import cmd_curves, cmd_results, cmd_table
 from physrover.config import ConfigError
 from physrover.core import plugins
 from physrover.experiment.store import RunError
@@ -76,6 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
         "credit, fitness method, trainer) before the command; repeatable; sweep workers "
         "inherit it (also: PHYSROVER_IMPORT, a sweep file's [sweep] imports)",
     )
+    from physrover import __version__
+
+    parser.add_argument("--version", action="version", version=f"physrover {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
 
     p = sub.add_parser("info", help="print the resolved run config (every table) as TOML")
@@ -89,9 +90,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--n-req", dest="n_req", type=int, help="coupling n_req")
     p.add_argument("--motion", help="motion model: ideal, physics or one registered")
-    p.add_argument("--generations", type=int, help="generations (with --resume: run up to)")
+    p.add_argument("--generations", type=int, help="the CCEA's length in generations "
+                   "(with --resume: run up to)")  # fmt: skip
+    p.add_argument("--iterations", type=int, help="a trainer's (mappo, maddpg) length in "
+                   "iterations of num_envs episodes (with --resume: run up to)")  # fmt: skip
     p.add_argument("--seed", type=int, help="seed of every random draw")
-    p.add_argument("--out", help="run directory (must not exist or be empty)")
+    p.add_argument("--out", help="run directory (must not exist or be empty; default: "
+                   "runs/ and a name from the config, or the next free one)")  # fmt: skip
     p.add_argument("--resume", metavar="DIR", help="continue the run in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
@@ -151,7 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
         "table",
         help="final scores with 95%% CI and the fraction that learns; --compare: tests",
         description="Each group's final score (mean eval G over its last N generations) "
-        "+- the Student-t 95%% half-width, range and fraction of runs that learn, as a "
+        "+- the Student-t 95% half-width, range and fraction of runs that learn, as a "
         "Markdown table; --compare FIELD=A,B also sets A against B in every cell of the other "
         "fields (permutation p, exact up to 10 vs 10 seeds; Holm-adjusted over the comparisons; "
         "Welch's t; Hedges' g).",
@@ -177,7 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="a sweep's runs.csv, cells table and figures, pooling earlier machines' rows",
         description="For each sweep directory: runs.csv (a row per finished run: its grid "
         "values, seed, final score, wall time, code and CPU), cells.md/.csv (final score "
-        "+- 95%% CI per cell of the grid), learning curves and final score against each "
+        "+- 95% CI per cell of the grid), learning curves and final score against each "
         "numeric grid field. Rows of OUT/runs.csv of finished runs not found on disk (a "
         "sweep run in chunks of seeds on other machines) are pooled in.",
     )
@@ -215,6 +220,13 @@ def build_parser() -> argparse.ArgumentParser:
         "e.g. experiments/results/runs.csv) lists as finished",
     )
     p.add_argument(
+        "--set",
+        action="append",
+        metavar="FIELD=VALUE",
+        help="override a config field of every run (repeatable), e.g. --set generations=50; "
+        "the runs go under NAME+FIELD=VALUE, apart from the file's",
+    )
+    p.add_argument(
         "--drop-state",
         action="store_true",
         help="delete each run's checkpoint (state*.npz, ~2 x 18 MB) when it finishes; it can "
@@ -247,7 +259,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # a misspelt flag: the command's own usage, not the top level's
+        command = _subparser(parser, args.command)
+        (command or parser).error(f"unrecognized arguments: {' '.join(extra)}")
     if args.command is None:  # bare `physrover`: show the commands, not just "required"
         parser.print_help(sys.stderr)
         return 2
@@ -258,6 +273,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     with warnings.catch_warnings():
         warnings.showwarning = _show_warning
         return _run(args)
+
+
+def _subparser(parser: argparse.ArgumentParser, name: str | None):
+    """The parser of command ``name`` (None for none)."""
+    for action in parser._subparsers._group_actions if parser._subparsers else ():
+        if isinstance(action, argparse._SubParsersAction) and name in action.choices:
+            return action.choices[name]
+    return None
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

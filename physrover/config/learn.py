@@ -129,7 +129,7 @@ class LearnConfig(ConfigBase):
             "critic_optimism",
             "an ensemble's spread needs critic_ensemble > 1",
         )
-        check(self.generations >= 0, "generations", f"must be >= 0, got {self.generations}")
+        check(self.generations >= 1, "generations", f"must be >= 1, got {self.generations}")
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
         self.check_at_least(

@@ -9,6 +9,7 @@ from typing import Any
 
 from physrover.config.base import (
     ConfigError,
+    check,
     did_you_mean,
     dumps_toml,
     load_toml_file,
@@ -56,6 +57,27 @@ class RunConfig:
         """What the run's checkpoints count when it is finished: [learn] generations, or a
         gradient-based trainer's iterations (its total_episodes / num_envs, rounded up)."""
         return self.trainer.total_iterations if self.trainer is not None else self.learn.generations
+
+    @property
+    def unit(self) -> str:
+        """What the run counts: "generation" (the CCEA) or "iteration" (a gradient-based
+        trainer: ``num_envs`` training episodes and an update)."""
+        return "iteration" if self.trainer is not None else "generation"
+
+    def with_length(self, n: int, unit: str | None = None) -> RunConfig:
+        """This config trained for ``n`` of its :attr:`unit` (a trainer's total_episodes
+        becomes ``n`` x num_envs). ``unit``, when given (a command-line flag's), must be
+        the config's own: a trainer's run is not measured in generations."""
+        if unit is not None and unit != self.unit:
+            flag = "--iterations" if self.unit == "iteration" else "--generations"
+            what = (f"{self.learn.method} trains in iterations ({self.trainer.num_envs} "
+                    "episodes each)" if self.trainer is not None
+                    else f"{self.learn.method} (the CCEA) trains in generations")  # fmt: skip
+            raise ConfigError(f"--{unit}s", f"{what}, not {unit}s: use {flag} N")
+        check(n >= 1, f"{self.unit}s", f"must be >= 1, got {n}")
+        if self.trainer is None:
+            return self.with_overrides({"generations": n})
+        return self.with_overrides({"total_episodes": n * self.trainer.num_envs})
 
     def _tables(self) -> dict[str, dict[str, Any]]:
         tables = {**self.domain.tables(), "learn": self.learn.to_dict()}

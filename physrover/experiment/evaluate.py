@@ -69,7 +69,7 @@ class Evaluation:
         ci = "" if math.isnan(self.ci95) else f" +- {self.ci95:.2f} (95% CI)"
         return (
             f"{self.run_dir} (champion after generation {self.generation}) under {what}: "
-            f"mean G {self.mean:.2f}{ci} over {len(self.G)} episodes"
+            f"mean G {self.mean:.2f}{ci} over {len(self.G)} episode{'s' * (len(self.G) != 1)}"
         )
 
     def write_csv(self, path: str | Path) -> Path:

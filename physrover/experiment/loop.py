@@ -34,6 +34,7 @@ def write_rows(
     bar: Progress | None,
     restart_clock: bool = False,
     after_row: Callable[[], None] | None = None,
+    unit: str = "generation",
 ) -> None:
     """The training loop of every learner (the CCEA, a gradient-based trainer): append
     ``next_row()`` to metrics.csv until ``learner.generation`` reaches ``total``,
@@ -44,7 +45,8 @@ def write_rows(
     ``after_row()`` is called once each row is written and checkpointed. A Ctrl-C or
     SIGTERM ends the current generation (its row written, logged and shown), checkpoints it
     and raises KeyboardInterrupt (:class:`StopRequests`), so a resume loses nothing; one in
-    the last generation lets the run finish. Closes ``log`` and ``bar``."""
+    the last generation lets the run finish. ``unit``: what a row is, in messages
+    ("generation", or a trainer's "iteration"). Closes ``log`` and ``bar``."""
     best = max((r["eval_G"] for r in rows), default=math.nan)
     saved = learner.generation
     try:
@@ -81,7 +83,7 @@ def write_rows(
                         if saved != done:
                             f.flush()
                             save_state(out, learner)
-                    raise KeyboardInterrupt(f"stopped by {stop.requested} after generation {done}")
+                    raise KeyboardInterrupt(f"stopped by {stop.requested} after {unit} {done}")
     finally:
         if bar:
             bar.close()
@@ -99,13 +101,21 @@ class TensorBoardLog:
     """
 
     def __init__(self, out: Path):
+        self.check_installed()
+        from torch.utils.tensorboard import SummaryWriter
+
+        self.writer = SummaryWriter(log_dir=str(out / "tensorboard"))
+
+    @staticmethod
+    def check_installed() -> None:
+        """RunError unless TensorBoard's writer imports: asked before a run directory is
+        made, so a missing package leaves nothing half made."""
         try:
-            from torch.utils.tensorboard import SummaryWriter
+            from torch.utils.tensorboard import SummaryWriter  # noqa: F401
         except ImportError:
             raise RunError(
                 "--tensorboard needs the tensorboard package: pip install 'physrover[tensorboard]'"
             ) from None
-        self.writer = SummaryWriter(log_dir=str(out / "tensorboard"))
 
     def write_row(self, row: dict) -> None:
         """One metrics row ({column: value}, with ``generation`` the step)."""

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.config import DomainConfig
+from physrover.config import ConfigError, DomainConfig
 from physrover.envs.gymnasium_env import RoverEnv
 from physrover.experiment.store import load_champions, load_run_config
 from physrover.learn.policies import PolicyLayout
@@ -73,6 +73,8 @@ def record_run(
 ) -> tuple[Path, list[float]]:
     """Write the video; returns its path and the G of each episode (per model if paired)."""
     run_dir, out = Path(run_dir), Path(out)
+    if episodes < 1:
+        raise ConfigError("--episodes", f"must be >= 1, got {episodes}")
     config = load_run_config(run_dir)
     generation, genomes = load_champions(run_dir, checkpoint)
     render = render or RenderConfig()

@@ -37,7 +37,7 @@ finished, so a later machine runs only what no earlier one finished (:func:`list
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -94,7 +94,8 @@ class Sweep:
         for field, values in grid.items():
             if not isinstance(values, list) or not values:
                 raise ConfigError(field, "grid values must be a non-empty list")
-            base.with_overrides({field: values[0]})  # the name must be a config field
+            for value in values:  # the name must be a config field, each value valid
+                base.with_overrides({field: value})
         seeds = meta.get("seeds", 1)
         if not isinstance(seeds, int) or seeds < 1:
             raise ConfigError("seeds", f"must be a positive integer, got {seeds!r}")
@@ -103,6 +104,22 @@ class Sweep:
             base.with_overrides(variant)  # names and values must be valid
         name = str(meta.get("name", Path(path).stem))
         return cls(name, base, grid, seeds, variants, tuple(imports))
+
+    def with_overrides(self, overrides: dict[str, Any]) -> Sweep:
+        """The same sweep with ``overrides`` ({field: value}, as ``--set``) applied to every
+        run, named ``NAME+field=value+...`` so that its runs never resume (or are resumed
+        as) the runs of the sweep as its file has it. A grid or variant field cannot be
+        overridden (each run has its own value)."""
+        if not overrides:
+            return self
+        varied = set(self.grid) | {f for variant in self.variants for f in variant}
+        for field in overrides:
+            if field in varied:
+                raise ConfigError(field, f"is varied by sweep {self.name}'s grid or variants; "
+                                  "--set cannot override it (edit a copy of the file)")  # fmt: skip
+        base = self.base.with_overrides(overrides)
+        suffix = "+".join(f"{field}={_slug(value)}" for field, value in sorted(overrides.items()))
+        return replace(self, name=f"{self.name}+{suffix}", base=base)
 
     def runs(
         self, root: str | Path, seeds: int | range | None = None, drop_state: bool = False

@@ -69,5 +69,5 @@ def train_trainer(
     label = f"{config.learn.method} iteration"
     bar = Progress(total, label, trainer.iterations, unit="it") if progress else None
     write_rows(out, trainer, lambda: metrics_row(trainer.iteration()), metrics_header(), rows,
-               total, config.learn.checkpoint_every, log, bar)  # fmt: skip
+               total, config.learn.checkpoint_every, log, bar, unit="iteration")  # fmt: skip
     return out

@@ -41,28 +41,33 @@ def train(
     *,
     resume: bool = False,
     generations: int | None = None,
+    iterations: int | None = None,
     progress: bool = True,
     tensorboard: bool = False,
     on_generation: Callable[[GenerationStats], None] | None = None,
 ) -> Path:
-    """Train (or continue) a run in ``out`` up to ``generations`` (default: the config's).
+    """Train (or continue) a run in ``out`` up to its length: ``generations`` for the CCEA,
+    ``iterations`` for a gradient-based trainer (``num_envs`` episodes each; its
+    total_episodes becomes iterations x num_envs), by default the config's. The other unit
+    is a ConfigError, as is a length below 1: nothing is written then.
 
     With ``resume``, ``config`` is ignored and read from ``out``; the run continues from its
-    last checkpoint (dropping metrics rows written after it) up to ``generations``. With
+    last checkpoint (dropping metrics rows written after it) up to that length. With
     ``tensorboard``, every metrics row is also written as TensorBoard scalars under
-    ``out/tensorboard`` (needs ``pip install 'physrover[tensorboard]'``).
+    ``out/tensorboard`` (needs ``pip install 'physrover[tensorboard]'``, checked first).
     """
     out = Path(out)
     if resume:
         config = load_run_config(out)
-        if generations is not None and generations != config.learn.generations:
-            config = config.with_overrides({"generations": generations})
-            atomic_write(out / CONFIG, config.to_toml())
-    else:
-        if config is None:
-            raise ConfigError("config", "a config is needed to start a run")
-        if generations is not None:
-            config = config.with_overrides({"generations": generations})
+    elif config is None:
+        raise ConfigError("config", "a config is needed to start a run")
+    for unit, n in (("generation", generations), ("iteration", iterations)):
+        if n is not None and (unit != config.unit or n != config.length):
+            config = config.with_length(n, unit)
+            if resume:
+                atomic_write(out / CONFIG, config.to_toml())
+    if tensorboard:
+        TensorBoardLog.check_installed()
     if config.trainer is not None:  # a gradient-based baseline, not the CCEA
         from physrover.experiment.trainer_runs import train_trainer
 

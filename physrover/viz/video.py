@@ -8,6 +8,7 @@ size). The frames come from :mod:`physrover.viz.render`.
 
 from __future__ import annotations
 
+import os
 from fractions import Fraction
 from pathlib import Path
 
@@ -32,13 +33,20 @@ class VideoWriter:
     the chroma resolution). A frame of another shape or dtype raises before it reaches the
     encoder; an encoding or write failure raises :class:`VideoError` naming the file. On
     close the file is read back: it must hold an H.264 yuv420p stream with exactly the frames
-    written. Use as a context manager (an exception inside skips the check) or call
+    written. The frames go to a temporary file beside ``path`` (``.NAME.partial``) that
+    replaces ``path`` only once it passed that check, so a failure (or an interrupted
+    recording) never leaves a broken file in place of a good one. Use as a context manager
+    (an exception inside skips the check and removes the temporary file) or call
     :meth:`close`. Quality: :data:`VIDEO_OPTIONS`; ``movflags=+faststart`` puts the index
     first, so browsers start playing before the download ends.
     """
 
     def __init__(self, path: str | Path, width: int, height: int, fps: int):
         self.path = Path(path)
+        # A regular file is written beside and renamed into place; a device or a pipe
+        # (/dev/stdout, /dev/full) is written to directly: it cannot be replaced.
+        regular = not self.path.exists() or self.path.is_file()
+        self._partial = self.path.with_name(f".{self.path.name}.partial") if regular else self.path
         self.size = (width, height)
         self.frames = 0
         self._container = self._stream = None
@@ -49,10 +57,12 @@ class VideoWriter:
             )
         if not self.path.parent.is_dir():
             raise VideoError(f"cannot write {self.path}: no directory {self.path.parent}")
+        if self.path.is_dir():
+            raise VideoError(f"cannot open {self.path} for writing (H.264): it is a directory")
         try:
-            self.path.open("wb").close()  # PyAV opens the file only at the first packet
+            self._partial.open("wb").close()  # PyAV opens the file only at the first packet
             self._container = av.open(
-                str(self.path), "w", format="mp4", options={"movflags": "+faststart"}
+                str(self._partial), "w", format="mp4", options={"movflags": "+faststart"}
             )
             self._stream = self._container.add_stream(VIDEO_CODEC, rate=Fraction(fps))
             self._stream.width, self._stream.height = width, height
@@ -87,9 +97,10 @@ class VideoWriter:
             self._container.mux(packet)
 
     def close(self, check: bool = True) -> None:
-        """Flush and close the file; with ``check``, read it back (see the class doc).
+        """Flush and close the file; with ``check``, read it back (see the class doc) and
+        move it into place.
 
-        ``check=False`` (after a failure) closes quietly and leaves what was written."""
+        ``check=False`` (after a failure) closes quietly and removes what was written."""
         if self._container is None:
             return
         error = None
@@ -103,18 +114,27 @@ class VideoWriter:
             container.close()
         except (av.FFmpegError, OSError, ValueError) as exc:
             error = error or exc
-        if not check:
-            return
-        if error is not None:
-            raise VideoError(f"finishing {self.path} failed: {error}") from error
-        self._check()
+        try:
+            if not check:
+                return
+            if error is not None:
+                raise VideoError(f"finishing {self.path} failed: {error}") from error
+            self._check()
+            if self._partial != self.path:
+                try:
+                    os.replace(self._partial, self.path)
+                except OSError as exc:
+                    raise VideoError(f"cannot write {self.path}: {exc.strerror}") from exc
+        finally:
+            if self._partial != self.path:
+                self._partial.unlink(missing_ok=True)
 
     def _check(self) -> None:
         """Read the closed file back: codec, pixel format and frame count."""
         if self.frames == 0:
             raise VideoError(f"{self.path}: no frames were written")
         try:
-            with av.open(str(self.path)) as container:
+            with av.open(str(self._partial)) as container:
                 stream = container.streams.video[0]
                 codec, pix_fmt = stream.codec_context.name, stream.codec_context.pix_fmt
                 count = sum(1 for packet in container.demux(stream) if packet.size)

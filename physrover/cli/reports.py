@@ -1,0 +1,82 @@
+"""The commands that read run directories and report on them: ``physrover curves``,
+``table`` and ``results`` (one thin function each over :mod:`physrover.analysis`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from physrover.cli.commands import UsageError
+from physrover.experiment.store import find_runs
+
+
+def cmd_curves(args: argparse.Namespace) -> int:
+    from physrover.analysis import plots
+
+    run_dirs = find_runs(args.run_dirs)
+    if not run_dirs:
+        raise UsageError("no run directories (with config.toml) found")
+    by, title = tuple(args.by or ()), args.title or None
+    if args.final:
+        result = plots.make_final(run_dirs, args.final, args.out, by=by, last=args.last,
+                                  title=title)  # fmt: skip
+    else:
+        result = plots.make_curves(run_dirs, args.out, by=by, smooth=args.smooth, title=title,
+                                   x=args.x)  # fmt: skip
+    for message in result.messages:
+        print(message, file=sys.stderr)
+    print(f"plot: {result.png}\nnumbers: {result.csv}")
+    return 0
+
+
+def cmd_table(args: argparse.Namespace) -> int:
+    from physrover.analysis import tables
+    from physrover.analysis.curve_data import load_runs
+
+    run_dirs = find_runs(args.run_dirs)
+    if not run_dirs:
+        raise UsageError("no run directories (with config.toml) found")
+    if args.last < 1:
+        raise UsageError(f"--last must be >= 1, got {args.last}")
+    runs = load_runs(run_dirs, by=tuple(args.by or ()))
+    if not any(len(run.eval_G) for run in runs):
+        raise UsageError(f"no generation in {len(runs)} run(s) yet: no final score to tabulate")
+    for message in tables.scored(runs, args.last)[1] + tables.length_messages(runs):
+        print(message, file=sys.stderr)
+    rows = tables.cells(runs, args.last, args.learned)
+    outputs = [("cells", rows, tables.CELL_COLUMNS, tables.cells_markdown(rows, args.last))]
+    if args.compare:
+        field, a, b = tables.parse_compare(args.compare)
+        pairs, skipped = tables.comparisons(runs, field, a, b, args.last, args.learned)
+        for message in skipped:
+            print(message, file=sys.stderr)
+        markdown = tables.comparisons_markdown(pairs)
+        outputs.append(("compare", pairs, tables.COMPARE_COLUMNS, markdown))
+    print("\n".join(markdown for *_, markdown in outputs), end="")
+    if args.out:
+        for name, table_rows, columns, markdown in outputs:
+            path = Path(f"{args.out}_{name}.csv")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tables.write_csv(table_rows, columns, path)
+            path.with_suffix(".md").write_text(markdown)
+            print(f"{name}: {path} {path.with_suffix('.md')}", file=sys.stderr)
+    return 0
+
+
+def cmd_results(args: argparse.Namespace) -> int:
+    from physrover.analysis.results import write_results
+
+    sweeps = [Path(d) for d in args.sweep_dirs]
+    for path in sweeps:
+        if not path.is_dir():
+            raise UsageError(f"{path} is not a directory")
+    if args.last < 1 or args.smooth < 1:
+        raise UsageError("--last and --smooth must be >= 1")
+    out = Path(args.out) if args.out else sweeps[0].parent / "results"
+    results, messages = write_results(sweeps, out, args.last, args.smooth)
+    for message in messages:
+        print(message, file=sys.stderr)
+    rows = sum(len(r.rows) for r in results)
+    print(f"results of {len(results)} sweep(s), {rows} runs: {out}")
+    return 0
