@@ -145,3 +145,33 @@ def test_one_episode_is_one_episode(tmp_path, capsys):
     assert main(["train", "--generations", "2", *SMALL, "--out", str(run)]) == 0
     assert main(["evaluate", str(run), "--episodes", "1"]) == 0
     assert "over 1 episode\n" in capsys.readouterr().out + "\n"
+
+
+def test_sweep_files_ship_with_the_package_and_run_by_name(tmp_path, capsys, monkeypatch):
+    """A wheel installed anywhere reproduces the paper: the sweep files are package data,
+    found by name from any directory (a path still works)."""
+    import shutil
+    import subprocess
+    import zipfile
+    from pathlib import Path
+
+    from physrover.experiment.sweep import shipped_sweeps
+
+    shipped = shipped_sweeps()
+    assert {"fig4-7-long", "fig8-9-paper", "smoke"} <= set(shipped)
+    monkeypatch.chdir(tmp_path)  # no experiments/ here
+    assert main(["sweep", "fig4-7-long", "--dry-run"]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 160  # 4 methods x 4 n_req x 10 seeds
+    assert main(["sweep", str(shipped["smoke"]), "--dry-run"]) == 0  # a path, as before
+    assert main(["sweep", "fig4-7-lng", "--dry-run"]) == 2
+    assert "shipped: ablation" in _err(capsys)[-1]
+    if shutil.which("pip") is None:
+        pytest.skip("needs pip to build the wheel")
+    root = Path(__file__).parent.parent
+    built = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w",
+                            str(tmp_path), str(root)],
+                           capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert built.returncode == 0, built.stderr[-2000:]
+    (wheel,) = tmp_path.glob("physrover-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    assert {f"physrover/sweeps/{name}.toml" for name in shipped} <= names

@@ -287,6 +287,31 @@ def test_a_whole_number_field_gets_whole_ticks(tmp_path, figures):
     assert ticks == [3, 4]  # before: 3.0, 3.2, 3.4, ...
 
 
+def test_many_groups_keep_apart_and_keep_off_the_curves(tmp_path, figures):
+    runs = [_fake_run(tmp_path, f"r{i}", "D", 3, [float(i)], poi_ring_radius=10.0 + i)
+            for i in range(12)]  # fmt: skip
+    plots.make_curves(runs, tmp_path / "many.png")
+    ax = figures[0].axes[0]
+    colours = [tuple(line.get_color()) if not isinstance(line.get_color(), str)
+               else line.get_color() for line in ax.get_lines()[:12]]  # fmt: skip
+    assert len(set(colours)) == 12  # before: the cycle of 10 repeated
+    legend = ax.get_legend()
+    box, axes_box = legend.get_window_extent(), ax.get_window_extent()
+    assert box.x0 >= axes_box.x1  # beside the axes, not over the curves
+
+
+def test_a_trainer_run_is_not_grouped_by_the_ccea_generations(tmp_path):
+    ccea = _fake_run(tmp_path, "ccea", "max-critic", 3, [1.0], generations=300)
+    mappo = _fake_run(tmp_path, "mappo", "mappo", 3, [1.0], generations=777)
+    other = _fake_run(tmp_path, "mappo2", "mappo", 3, [2.0], generations=5, seed=1)
+    for run in (mappo, other):  # a trainer's metrics also count episodes
+        (run / "metrics.csv").write_text(
+            ",".join([*stats_header(), "episodes", "env_steps"]) + "\n1,1,0,0,0,0,32,800\n"
+        )
+    groups = {run.path.name: run.group for run in load_runs([ccea, mappo, other])}
+    assert groups == {"ccea": "max-critic", "mappo": "mappo", "mappo2": "mappo"}
+
+
 def test_a_method_keeps_its_colour_across_figures():
     from physrover.core.registry import FITNESS_METHODS as METHODS
 

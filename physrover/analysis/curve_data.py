@@ -127,6 +127,7 @@ def load_runs(
         if config.trainer is not None:  # a gradient-based run: its own table, by table.field
             section = config.trainer.section
             fields |= {f"{section}.{k}": v for k, v in config.trainer.to_dict().items()}
+            del fields["generations"]  # [learn] generations: not what a trainer's run counts
         all_fields.append(fields)
     for name, option in [(n, "--by") for n in by] + ([(x, "--final")] if x else []):
         if name not in _FIELD_ORDER and not any(name in f for f in all_fields):

@@ -66,6 +66,11 @@ def group_colours(groups, methods: dict[str, str | None] | None = None) -> dict[
     known = [m for m in of.values() if m in METHOD_COLOURS]
     if len(known) == len(groups) and len(set(known)) == len(known):
         return {g: METHOD_COLOURS[of[g]] for g in groups}
+    if len(groups) > 10:  # beyond the axes' cycle of 10, which would repeat: 20 distinct
+        from matplotlib import colormaps
+
+        palette = colormaps["tab20"].colors
+        return {g: palette[i % len(palette)] for i, g in enumerate(groups)}
     return dict.fromkeys(groups)
 
 
@@ -100,8 +105,14 @@ def _max_g_lines(ax, table: dict) -> None:
 
 
 def _finish(fig, ax, plt, out: Path) -> None:
-    """Legend, layout, save to ``out`` (creating its directory), close."""
-    ax.legend(fontsize=8)
+    """Legend, layout, save to ``out`` (creating its directory), close. More than five
+    entries go beside the axes, widening the figure, so the legend never covers a curve."""
+    entries = len(ax.get_legend_handles_labels()[1])
+    if entries > 5:
+        fig.set_size_inches(6.4 + 2.6, 4.2)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    else:
+        ax.legend(fontsize=8)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out)

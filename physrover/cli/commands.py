@@ -175,7 +175,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     raise UsageError(f"unknown benchmark {args.what!r}")
 
 
-PAPER_SWEEPS = ("experiments/fig4-7-long.toml", "experiments/fig8-9-paper.toml")
+PAPER_SWEEPS = ("fig4-7-long", "fig8-9-paper")  # shipped (physrover/sweeps)
 
 
 def _bench_paper(args: argparse.Namespace, bench) -> int:

@@ -69,7 +69,9 @@ class Sweep:
 
     @classmethod
     def load(cls, path: str | Path) -> Sweep:
-        """The sweep in a TOML file; every error names the file."""
+        """The sweep in a TOML file, or a sweep shipped with physrover by its name
+        (``fig4-7-long``: :func:`shipped_sweeps`); every error names the file."""
+        path = resolve_sweep_file(path)
         data = load_toml_file(path)
         with naming_file(path):
             return cls._from_dict(data, path)
@@ -143,6 +145,28 @@ class Sweep:
                 out = str(Path(root) / self.name / name)
                 specs.append(RunSpec(name, config.to_toml(), out, drop_state))
         return specs
+
+
+def shipped_sweeps() -> dict[str, Path]:
+    """{name: file} of the sweep files shipped in the package (``physrover/sweeps``: the
+    paper's figures, the studies of RESULTS.md, ``smoke``), so an installed wheel reproduces
+    the paper without the repository."""
+    folder = Path(__file__).resolve().parent.parent / "sweeps"
+    return {p.stem: p for p in sorted(folder.glob("*.toml"))}
+
+
+def resolve_sweep_file(path: str | Path) -> Path:
+    """``path`` if it names a file, else the shipped sweep of that name (with or without
+    ``.toml``); a ConfigError listing the shipped ones otherwise."""
+    given = Path(path)
+    if given.is_file():
+        return given
+    shipped = shipped_sweeps()
+    name = given.name.removesuffix(".toml")
+    if given.parent == Path(".") and name in shipped:
+        return shipped[name]
+    known = ", ".join(shipped)
+    raise ConfigError(str(path), f"no such sweep file, nor a shipped sweep (shipped: {known})")
 
 
 def parse_seeds(text: str) -> int | range:
