@@ -141,3 +141,15 @@ def test_overrides_are_applied_as_a_whole_and_by_any_spelling():
     # A trainer's table cannot take the run's seed.
     with pytest.raises(ConfigError, match=r"mappo.seed: set seed in \[learn\]"):
         RunConfig().with_overrides({"method": "mappo", "mappo.seed": 7})
+
+
+def test_an_array_left_open_at_the_end_of_a_file_names_its_line(tmp_path):
+    """tomllib says only "at end of document" there (issue 30)."""
+    from physrover.config import RunConfig
+
+    path = tmp_path / "bad.toml"
+    path.write_text('[learn]\ngenerations = 3\n[domain]\nname = "a [b"  # [c\n'
+                    "poi_values = [1, 2,\n")  # fmt: skip
+    with pytest.raises(ConfigError, match=r"bad.toml: cannot parse TOML: .*end of document.*; "
+                       r"the \[ of line 5 is never closed"):  # fmt: skip
+        RunConfig.load(path)

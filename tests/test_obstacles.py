@@ -130,7 +130,7 @@ def test_runs_with_obstacles_and_mixed_rovers_are_deterministic():
 
 
 def test_boxes_and_segments_are_drawn_where_they_are():
-    render = RenderConfig(width=200, height=200)
+    render = RenderConfig(width=320, height=320)  # room below the HUD band
     scenario = {"kind": "explicit", "obstacle_boxes": [[7.0, 7.0, 2.0, 1.0, 0.0]],
                 "obstacle_segments": [[-8.0, -6.0, -2.0, -6.0, 0.5]]}  # fmt: skip
     env = RoverEnv(n_rovers=2, n_req=1, scenario=scenario, motion="physics",

@@ -1,6 +1,7 @@
 """Rendering, H.264 MP4 writing and side-by-side playback."""
 
 import colorsys
+import math
 from pathlib import Path
 
 import av
@@ -12,9 +13,13 @@ from physrover.config import ConfigError, DomainConfig, LearnConfig, RunConfig
 from physrover.experiment.playback import DIVIDER_PX, record_run
 from physrover.learn.policies import PolicyLayout
 from physrover.viz.render import (
+    BACKGROUND,
+    FOOTER_PX,
+    HUD_PX,
     PALETTE_RGB,
     POI_CAPTURED,
     POI_FREE,
+    ROVER_PX,
     RenderConfig,
     Transform,
     VideoError,
@@ -146,12 +151,12 @@ def test_check_env_with_rendering():
 
 
 def test_poi_turns_green_when_captured():
-    render = RenderConfig(width=200, height=200)
+    render = RenderConfig(width=320, height=320)
     env = RoverEnv(n_rovers=2, n_req=2, render_mode="rgb_array", render_config=render)
     # Both rovers sit near POI 1 at (15, 0), away from its centre: captured at reset.
     env.reset(seed=0, options={"rover_positions": [(13.0, 2.0), (13.0, -2.0)]})
     frame = env.render().astype(int)
-    assert frame.shape == (200, 200, 3)
+    assert frame.shape == (320, 320, 3)
     tf = _view(env, render)
     col, row = np.round(tf([15.0, 0.0])).astype(int)  # POI 1 (captured)
     assert np.abs(frame[row, col] - (60, 170, 60)).max() <= 2
@@ -159,15 +164,55 @@ def test_poi_turns_green_when_captured():
     assert np.abs(frame[row, col] - (150, 150, 150)).max() <= 2
 
 
-def test_palette_is_far_from_poi_colours():
-    assert len(set(PALETTE_RGB)) == 15
-    pois = [POI_FREE[::-1], POI_CAPTURED[::-1]]  # RGB
-    for colour in PALETTE_RGB:
-        for poi in pois:
-            assert np.linalg.norm(np.subtract(colour, poi)) > 100, (colour, poi)
+def _lab(rgb):
+    """CIE L*a*b* of an sRGB colour (D65), written from the standard's formulas."""
+    linear = [((c / 255 + 0.055) / 1.055) ** 2.4 if c / 255 > 0.04045 else c / 255 / 12.92
+              for c in rgb]  # fmt: skip
+    r, g, b = linear
+    xyz = (
+        (0.4124 * r + 0.3576 * g + 0.1805 * b) / 0.95047,
+        0.2126 * r + 0.7152 * g + 0.0722 * b,
+        (0.0193 * r + 0.1192 * g + 0.9505 * b) / 1.08883,
+    )
+    f = [t ** (1 / 3) if t > 0.008856 else 7.787 * t + 16 / 116 for t in xyz]
+    return 116 * f[1] - 16, 500 * (f[0] - f[1]), 200 * (f[1] - f[2])
+
+
+def test_palette_tells_twenty_rovers_apart_and_from_the_pois():
+    assert len(set(PALETTE_RGB)) == 20
+    others = [POI_FREE[::-1], POI_CAPTURED[::-1], BACKGROUND[::-1]]  # RGB
+    for i, colour in enumerate(PALETTE_RGB):
+        for other in [*PALETTE_RGB[:i], *others]:
+            assert math.dist(_lab(colour), _lab(other)) >= 30, (colour, other)  # CIE76
         hue, saturation, _ = colorsys.rgb_to_hsv(*(c / 255 for c in colour))
         assert saturation >= 0.4, colour  # not grey
         assert not 70 <= 360 * hue <= 170, colour  # not green (yellow ends at ~60 deg)
+
+
+def test_the_hud_and_the_label_bands_stay_clear_of_rovers_and_pois():
+    render = RenderConfig(width=320, height=320)
+    env = RoverEnv(n_rovers=3, n_req=1, steps=5, render_mode="rgb_array", render_config=render)
+    # A rover far above the ring and one far below: the view's extremes.
+    env.reset(seed=0, options={"rover_positions": [(0.0, 40.0), (0.0, -40.0), (0.0, 0.0)]})
+    tf = _view(env, render)
+    rows = tf(env.unwrapped.world.rover_positions[0])[:, 1]
+    assert rows.min() - ROVER_PX >= HUD_PX and rows.max() + ROVER_PX <= 320 - FOOTER_PX
+    frame = env.render()
+    for band in (frame[:HUD_PX], frame[320 - FOOTER_PX :]):
+        for i in range(3):  # no body's colour (the HUD's text is grey, anti-aliased)
+            assert not (band == rover_rgb(i)).all(-1).any(), i
+    for i, row in enumerate(np.round(rows).astype(int)):  # the bodies are where the view says
+        assert (frame[row] == rover_rgb(i)).all(-1).any(), i
+
+
+def test_rover_ids_on_request():
+    plain = RenderConfig(width=240, height=240)
+    env = RoverEnv(n_rovers=3, n_req=1, render_mode="rgb_array", render_config=plain)
+    env.reset(seed=1)
+    with_ids = RoverEnv(n_rovers=3, n_req=1, render_mode="rgb_array",
+                        render_config=plain.replace(ids=True))  # fmt: skip
+    with_ids.reset(seed=1)
+    assert not np.array_equal(env.render(), with_ids.render())
 
 
 def test_view_keeps_a_far_rover_in_frame():
@@ -240,7 +285,7 @@ def test_record_run_side_by_side(tmp_path):
 
 
 def test_obstacles_are_drawn_where_they_are():
-    render = RenderConfig(width=200, height=200)
+    render = RenderConfig(width=320, height=320)
     scenario = {"kind": "explicit", "obstacle_discs": [[7.0, 7.0, 2.0]]}
     env = RoverEnv(n_rovers=2, n_req=1, scenario=scenario, motion="physics",
                    render_mode="rgb_array", render_config=render)  # fmt: skip

@@ -25,3 +25,12 @@ def test_links_point_at_files():
     for target in re.findall(r"\]\(([^)#]+)\)", README):
         if not re.match(r"[a-z]+://", target):
             assert (ROOT / target).exists(), target
+
+
+def test_the_package_description_links_nothing_relative():
+    """PyPI shows it without the repository beside it (issue 30): no relative links or
+    images, and it is what pyproject.toml names."""
+    text = (ROOT / "README.pypi.md").read_text()
+    assert 'readme = {file = "README.pypi.md"' in (ROOT / "pyproject.toml").read_text()
+    for target in re.findall(r"\]\(([^)]+)\)", text):
+        assert re.match(r"https?://", target), target

@@ -206,7 +206,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from physrover.experiment.playback import record_run
     from physrover.viz.render import RenderConfig
 
-    render = RenderConfig(width=args.size, height=args.size, fps=args.fps)
+    render = RenderConfig(width=args.size, height=args.size, fps=args.fps, ids=args.ids)
     run_dir = Path(args.run_dir)
     out = args.out or str(run_dir / ("side_by_side.mp4" if args.side_by_side else "episodes.mp4"))
     path, scores = record_run(

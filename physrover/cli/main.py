@@ -118,6 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the first episode")
     p.add_argument("--out", help="output .mp4 (default: inside the run directory)")
     p.add_argument("--side-by-side", action="store_true", help="ideal and physics side by side")
+    p.add_argument("--ids", action="store_true", help="draw each rover's index beside it")
     p.add_argument("--size", type=int, default=640, help="frame width and height, pixels (even)")
     p.add_argument("--fps", type=int, default=10, help="frames per second")
     p.set_defaults(func=cmd_render)

@@ -185,7 +185,34 @@ def loads_toml(text: str, source: str = "<string>") -> dict[str, Any]:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(source, f"cannot parse TOML: {exc}") from None
+        message = str(exc)
+        if "end of document" in message:  # tomllib gives no line here: find the opener
+            message += _unclosed(text)
+        raise ConfigError(source, f"cannot parse TOML: {message}") from None
+
+
+def _unclosed(text: str) -> str:
+    """Where a document that ended too soon left a bracket or brace open (for the error of
+    :func:`loads_toml`), e.g. ``; the [ of line 4 is never closed`` (brackets inside a
+    one-line string or after a comment do not count)."""
+    stack: list[tuple[str, int]] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        quote = None
+        for char in line:
+            if quote:
+                quote = None if char == quote else quote
+            elif char in "\"'":
+                quote = char
+            elif char == "#":
+                break
+            elif char in "[{":
+                stack.append((char, number))
+            elif char in "]}" and stack:
+                stack.pop()
+    if stack:
+        char, number = stack[-1]
+        return f"; the {char} of line {number} is never closed"
+    return f" (line {len(text.splitlines())})"
 
 
 def load_toml_file(path: str | Path) -> dict[str, Any]:

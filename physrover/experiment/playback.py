@@ -25,7 +25,6 @@ from physrover.learn.policies import PolicyLayout
 from physrover.viz.render import (
     FrameState,
     RenderConfig,
-    Transform,
     VideoWriter,
     draw_frame,
     label,
@@ -88,12 +87,12 @@ def record_run(
     with VideoWriter(out, width, render.height, render.fps) as video:
         for episode in range(episodes):
             played = [play(env, layout, genomes, seed + episode) for env in envs]
-            # One view for the whole episode and every panel: the last states hold it all.
-            view = Transform.fit_states([states[-1] for states in played], config.domain, render)
+            # Each panel frames its POIs and its team's trajectory so far (draw_frame's view):
+            # the start is not lost in a view of the whole episode, no rover is ever cut.
             for states in zip(*played, strict=True):
                 tagged = [
                     label(
-                        draw_frame(state, env.config, render, view),
+                        draw_frame(state, env.config, render),
                         f"{env.config.motion}  gen {generation}  episode {episode + 1}",
                     )
                     for state, env in zip(states, envs, strict=True)

@@ -11,14 +11,16 @@ A frame shows one team:
   distinct, a heading tick and a trail of its last positions.
 - While the team is a tight clump (the spawn disc at the first steps), a zoomed inset of it
   at the top right, its area marked by a grey rectangle in the main view.
-- A HUD with the step, G, n_req and the motion model (and, for physics, collisions on/off).
+- A HUD with the step, G, n_req and the motion model (and, for physics, collisions on/off),
+  and a one-line legend of the POI labels, in a band at the top that the view keeps clear
+  (:data:`HUD_PX`; the bottom band, :data:`FOOTER_PX`, is a panel's label).
 
 World-to-pixel transform (:class:`Transform`): one scale for x and y (equal aspect), world
 y up on screen, fitted to a box holding every POI with its capture ring and every rover
 position given, plus ``margin`` world units. :func:`draw_frame` fits the trajectory so far
-(so ``RoverEnv.render()`` zooms out as rovers leave and never back in);
-:mod:`physrover.experiment.playback` plays a whole episode first and draws every frame (and both
-panels of a side-by-side video) with one view that holds the whole episode.
+(so ``RoverEnv.render()`` and each panel of :mod:`physrover.experiment.playback`'s videos
+frame what is on screen now, zooming out as the team spreads and never back in, never
+cutting a rover).
 
 Frame sizes are even (:class:`RenderConfig` requires it): :mod:`physrover.viz.video` writes the
 frames as H.264 yuv420p MP4 (no hidden padding: a frame is the video's size). Its
@@ -43,16 +45,24 @@ POI_CAPTURED = (60, 170, 60)
 TEXT = (40, 40, 40)
 OUTLINE = (30, 30, 30)  # rover body outlines
 OBSTACLE = (110, 110, 110)  # the scenario's static discs
-# Rover colours, cycled by index, as RGB: saturated or light hues from blue over purple
-# and red to yellow, never grey or green (the POI colours); tests/test_pictures.py checks it.
+# Rover colours, cycled by index, as RGB: 20 hues picked greedily, each as far as it can
+# be (CIE76 colour difference >= 30) from the others, the background and the POI colours,
+# never grey or green (the POI colours); tests/test_pictures.py checks it.
 PALETTE_RGB = [
-    (31, 119, 180), (255, 127, 14), (214, 39, 40), (120, 60, 200), (150, 95, 45),
-    (240, 110, 200), (23, 190, 207), (235, 190, 0), (30, 40, 140), (255, 150, 150),
-    (150, 200, 255), (190, 0, 190), (128, 0, 40), (255, 210, 140), (70, 20, 90),
+    (31, 119, 180), (214, 39, 40), (0, 0, 255), (217, 0, 173), (255, 204, 0),
+    (0, 0, 115), (115, 92, 0), (0, 255, 255), (115, 0, 69), (157, 115, 255),
+    (255, 115, 157), (255, 171, 115), (204, 0, 255), (255, 128, 0), (115, 41, 23),
+    (115, 213, 255), (71, 52, 115), (166, 166, 33), (0, 115, 115), (0, 76, 255),
 ]  # fmt: skip
 PALETTE = [c[::-1] for c in PALETTE_RGB]  # BGR, as OpenCV draws
 ROVER_PX = 6
 """Smallest drawn rover radius, pixels (the body's true size when larger)."""
+
+HUD_PX = 66
+"""Pixels at the top of a frame kept for the HUD (three lines): the view never puts a POI
+or a rover there."""
+FOOTER_PX = 26
+"""Pixels at the bottom kept for a panel's label (:func:`label`)."""
 
 INSET_ZOOM = 2.0
 """Smallest zoom at which the clump inset is drawn (see ``_draw_clump_inset``)."""
@@ -86,6 +96,8 @@ class RenderConfig(ConfigBase):
     """Steps of trail drawn behind each rover."""
     margin: float = 2.0
     """World units shown beyond the POIs' capture rings and the rovers' positions."""
+    ids: bool = False
+    """Draw each rover's index beside it (``physrover render --ids``)."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -137,13 +149,14 @@ class Transform:
                 lo, hi = np.minimum(lo, rovers.min(0)), np.maximum(hi, rovers.max(0))
         lo, hi = lo - render.margin, hi + render.margin
         pad = ROVER_PX + 1
+        top, bottom = HUD_PX, FOOTER_PX  # the HUD's and the label's bands stay clear
         scale = min((render.width - 2 * pad) / (hi[0] - lo[0]),
-                    (render.height - 2 * pad) / (hi[1] - lo[1]))  # fmt: skip
+                    (render.height - top - bottom - 2 * pad) / (hi[1] - lo[1]))  # fmt: skip
         centre = (lo + hi) / 2.0
         return cls(
             float(scale),
             render.width / 2.0 - scale * centre[0],
-            render.height / 2.0 + scale * centre[1],
+            top + (render.height - top - bottom) / 2.0 + scale * centre[1],
         )
 
     @classmethod
@@ -200,9 +213,11 @@ def _text(img, text: str, org, scale: float, colour, thickness: int = 1, halo=Fa
     cv2.putText(img, text, org, font, scale, colour, thickness, aa)
 
 
-def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig) -> None:
+def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig,
+                 ids: bool = False) -> None:  # fmt: skip
     """Draw (n, R, 2) world positions as trails ending in outlined bodies with heading ticks
-    (later indices on top); bodies at their true size, at least ``ROVER_PX`` pixels."""
+    (later indices on top); bodies at their true size, at least ``ROVER_PX`` pixels;
+    ``ids``: each rover's index beside its body."""
     aa = cv2.LINE_AA
     radii = domain.physics.per_rover("rover_radius", positions.shape[1])  # to scale, per rover
     trail = tf(positions)  # (n, R, 2) pixels
@@ -219,6 +234,11 @@ def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig) 
         direction = np.array([np.cos(headings[i]), -np.sin(headings[i])])
         cv2.line(img, _pt(now[i] + radius_px * direction),
                  _pt(now[i] + 2.2 * radius_px * direction), TEXT, 2, aa)  # fmt: skip
+    if ids:
+        for i in range(now.shape[0]):
+            radius_px = max(ROVER_PX, int(round(tf.scale * radii[i])))
+            corner = (int(now[i][0]) + radius_px + 1, int(now[i][1]) - radius_px - 1)
+            _text(img, str(i), corner, 0.35, rover_colour(i), halo=True)
 
 
 def _draw_clump_inset(img, now, headings, tf: Transform, domain: DomainConfig) -> None:
@@ -285,7 +305,8 @@ def draw_frame(
         colour = POI_CAPTURED if captured else POI_FREE
         cv2.circle(img, centres[k], ring_px, colour, 1, aa)
         cv2.circle(img, centres[k], int(4 + 8 * value / vmax), colour, -1, aa)
-    _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain)
+    _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain,
+                 render.ids)  # fmt: skip
     # POI labels on top of the rovers: the value and the rovers in range / n_req.
     counts = state.poi_counts
     for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
@@ -302,11 +323,12 @@ def draw_frame(
     if motion == "physics":
         motion += f" (collisions {'on' if domain.physics.collisions else 'off'})"
     lines = [
-        f"step {state.step}/{domain.steps}   G {state.G:g}",
-        f"n_req {domain.n_req}   {motion}",
+        (f"step {state.step}/{domain.steps}   G {state.G:g}", 0.55),
+        (f"n_req {domain.n_req}   {motion}", 0.55),
+        ("POI: its value above right; k/n_req below: rovers in reach / needed", 0.4),
     ]
-    for j, text in enumerate(lines):
-        _text(img, text, (10, 22 + 20 * j), 0.55, TEXT)
+    for j, (text, size) in enumerate(lines):
+        _text(img, text, (10, 20 + 20 * j), size, TEXT)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
