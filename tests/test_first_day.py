@@ -175,3 +175,20 @@ def test_sweep_files_ship_with_the_package_and_run_by_name(tmp_path, capsys, mon
     (wheel,) = tmp_path.glob("physrover-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     assert {f"physrover/sweeps/{name}.toml" for name in shipped} <= names
+
+
+def test_a_sweep_resumes_a_trainer_run_in_iterations(tmp_path):
+    """A sweep's partial run is resumed up to the sweep's length in the learner's own unit:
+    with --generations for every run, a MAPPO run of a sweep could not be resumed."""
+    from physrover.experiment.execute import run_one
+    from physrover.experiment.sweep import RunSpec
+    from physrover.experiment.training import train
+
+    config = RunConfig().with_overrides({"method": "mappo", "n_rovers": 3, "n_req": 1,
+                                         "steps": 10, "num_envs": 4, "total_episodes": 12,
+                                         "eval_episodes": 2})  # fmt: skip
+    out = tmp_path / "run"
+    train(config, out, iterations=1, progress=False)  # killed after its first iteration
+    name, _, error = run_one(RunSpec("run", config.to_toml(), str(out)))
+    assert error is None, error
+    assert [r["episodes"] for r in read_metrics(out / "metrics.csv")] == [4, 8, 12]

@@ -126,7 +126,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         config = load_run_config(out)
         length = args.generations if args.generations is not None else args.iterations
         if length is not None:
-            config = config.with_length(length, "generation" if args.generations else "iteration")
+            unit = "generation" if args.generations is not None else "iteration"
+            config = config.with_length(length, unit)
         done = last_checkpoint(out)
         if done is not None and done >= config.length:
             flag = f"--{config.unit}s"

@@ -52,8 +52,10 @@ def run_one(spec: RunSpec) -> tuple[str, float, str | None]:
                     shutil.rmtree(out)
                     train(config, out, progress=False)
                 else:
-                    train(None, out, resume=True, generations=config.learn.generations,
-                          progress=False)  # fmt: skip
+                    # up to the sweep's length, in the learner's unit (a trainer's runs
+                    # count iterations)
+                    length = {f"{config.unit}s": config.length}
+                    train(None, out, resume=True, progress=False, **length)
             else:
                 train(config, out, progress=False)
         if spec.drop_state:
