@@ -40,7 +40,9 @@ def test_rewards_sum_to_G_and_D_arrives_at_the_end():
     total, truncated = 0.0, False
     while not truncated:
         obs, r, terminated, truncated, info = env.step(np.tile([1.0, 0.0], (3, 1)))
-        assert not terminated and ("D" in info) == truncated
+        assert not terminated and "D" in info  # every step: zeros until the last
+        if not truncated:
+            np.testing.assert_array_equal(info["D"], np.zeros(3))
         total += r
     assert info["G"] == 2.0 == total  # the POI at (6, 0) is reached driving along +x
     np.testing.assert_array_equal(info["D"], [0.0, 0.0, 0.0])  # each rover alone suffices
@@ -76,8 +78,8 @@ def test_vector_team_i_is_single_env_with_seed_plus_i():
                 np.testing.assert_array_equal(obs[i], o)
                 assert (rew[i], term[i], trunc[i]) == (r, te, tr)
                 assert infos["G"][i] == info["G"]
-                if tr:
-                    np.testing.assert_array_equal(infos["D"][i], info["D"])
+                np.testing.assert_array_equal(infos["D"][i], info["D"])  # zeros before the end
+                assert infos["_D"][i] == tr
         assert trunc.all() and infos["_D"].all()
         # NEXT_STEP autoreset: the next step only resets, like reset() on the singles.
         obs, rew, term, trunc, infos = venv.step(np.zeros((n, 5, 2)))
@@ -118,3 +120,32 @@ def test_play_episode_is_reset_then_steps_without_the_infos():
     # Like after a last step, the next step autoresets.
     obs, rewards, *_ = a.step(np.zeros((6, 5, 2)))
     assert a.world.t == 0 and not rewards.any()
+
+
+def test_info_keys_and_shapes_never_change_within_or_across_episodes():
+    """TorchRL builds its specs from the first step's infos: a key that appears later (D on
+    the last step) had no slot and broke its PettingZoo wrapper (issue 31)."""
+    from physrover.envs import parallel_env
+
+    pytest.importorskip("pettingzoo")
+    fields = dict(n_rovers=3, n_req=1, steps=4)
+
+    def layout(info):
+        return {k: np.shape(v) for k, v in info.items()}
+
+    env, venv, penv = RoverEnv(**fields), RoverVectorEnv(2, **fields), parallel_env(**fields)
+    seen = set()
+    for seed in (0, 1):  # across resets
+        _, info = env.reset(seed=seed)
+        _, infos = venv.reset(seed=seed)
+        _, pinfos = penv.reset(seed=seed)
+        first = (layout(info), layout(infos), {a: layout(i) for a, i in pinfos.items()})
+        for _ in range(fields["steps"]):
+            _, _, _, _, info = env.step(env.action_space.sample())
+            _, _, _, _, infos = venv.step(venv.action_space.sample())
+            _, _, _, _, pinfos = penv.step({a: penv.action_space(a).sample() for a in penv.agents})
+            now = (layout(info), layout(infos), {a: layout(i) for a, i in pinfos.items()})
+            assert now == first
+            seen.add(bool(infos["_D"].all()))
+        assert infos["_D"].all()  # the last step gives D, masked in
+    assert seen == {True, False}

@@ -87,8 +87,10 @@ class RoverEnv(gymnasium.Env):
     Truncated after ``steps`` steps; never terminated.
 
     ## Info
-    ``"G"`` (score so far), ``"rover_positions"`` (R, 2), ``"rover_headings"`` (R,) and, on
-    the last step, ``"D"`` (R,): each rover's difference evaluation (Eq. 1).
+    ``"G"`` (score so far), ``"rover_positions"`` (R, 2), ``"rover_headings"`` (R,) and
+    ``"D"`` (R,): each rover's difference evaluation (Eq. 1) on the episode's last step
+    (``truncated`` True), zeros before. The keys and shapes are the same at every step
+    (what TorchRL's wrappers need).
 
     ## Rendering
     ``render_mode="rgb_array"``: ``render()`` returns an OpenCV-drawn (H, W, 3) uint8 RGB
@@ -139,9 +141,11 @@ class RoverEnv(gymnasium.Env):
             "G": float(w.G[0]),
             "rover_positions": w.rover_positions[0].copy(),
             "rover_headings": w.rover_headings[0].copy(),
+            # Every step, so the keys never change within an episode (TorchRL builds its
+            # specs from the first step's): zeros until the last step gives it. (Not NaN:
+            # gymnasium's and PettingZoo's determinism checks compare infos with ==.)
+            "D": w.D[0].copy() if w.done else np.zeros(w.config.n_rovers),
         }
-        if w.done:
-            info["D"] = w.D[0].copy()
         return info
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -193,9 +197,10 @@ class RoverVectorEnv(VectorEnv):
     returns the new first observations with zero rewards.
 
     Infos hold ``"G"`` (E,), ``"rover_positions"`` (E, R, 2), ``"rover_headings"`` (E, R)
-    and, on the last step, ``"D"`` (E, R), each with its ``"_name"`` mask as gymnasium's
-    vector envs do. The wrapped :class:`RoverWorld` is ``world``; its recorded trajectories
-    serve the fitness critics.
+    and ``"D"`` (E, R), each with its ``"_name"`` mask as gymnasium's vector envs do, at
+    every step: ``"D"`` is zeros and its mask False until the last step of an episode. The
+    wrapped :class:`RoverWorld` is ``world``; its recorded trajectories serve the fitness
+    critics.
 
     Start states follow the scenario's ``redraw`` (:mod:`physrover.domain.scenarios`): under
     ``"generation"`` one draw is shared by all teams of a reset but the last
@@ -242,10 +247,11 @@ class RoverVectorEnv(VectorEnv):
             "_rover_positions": every,
             "rover_headings": w.rover_headings.copy(),
             "_rover_headings": every,
+            # Every step (keys never change): zeros, masked out, until the last step, as
+            # gymnasium's vector envs fill a key an env lacks.
+            "D": w.D.copy() if w.done else np.zeros((self.num_envs, w.config.n_rovers)),
+            "_D": every if w.done else ~every,
         }
-        if w.done:
-            infos["D"] = w.D
-            infos["_D"] = every
         return infos
 
     def play_episode(self, policy, headings: bool = True) -> RoverWorld:

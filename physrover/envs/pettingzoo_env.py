@@ -83,7 +83,8 @@ class RoverParallelEnv(ParallelEnv):
 
     ## Info
     Per agent ``"G"`` (the team's score so far), ``"position"`` (2,) in world units and
-    ``"heading"`` (radians) of its rover, and on the last step its ``"D"``.
+    ``"heading"`` (radians) of its rover, and its ``"D"`` (0 until the last step: the keys are
+    the same at every step, as TorchRL's PettingZoo wrapper needs).
 
     ## Rendering
     ``render_mode="rgb_array"``: ``render()`` returns the wrapped ``RoverEnv``'s (H, W, 3)
@@ -156,9 +157,8 @@ class RoverParallelEnv(ParallelEnv):
                 "G": info["G"],
                 "position": info["rover_positions"][i].copy(),
                 "heading": float(info["rover_headings"][i]),
+                "D": float(info["D"][i]),  # 0 until the last step: the keys never change
             }
-            if "D" in info:
-                infos[agent]["D"] = float(info["D"][i])
         return observations, infos
 
     def reset(self, seed: int | None = None, options: dict[str, Any] | None = None):
