@@ -14,7 +14,9 @@ Layout of a run directory::
                                (physrover.experiment.provenance)
 
 Every file is replaced through :func:`atomic_write` (temporary file, fsync, rename,
-directory fsync). This module knows nothing of how a run trains
+directory fsync) but the rows the training loop appends to metrics.csv, where a line torn
+by a kill is not read and a resume drops the rows past its checkpoint. This module knows
+nothing of how a run trains
 (:mod:`physrover.experiment.training`); it takes any learner with ``state()``,
 ``load_state()``, ``generation`` and ``champion_genomes()``.
 """
