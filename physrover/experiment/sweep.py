@@ -43,6 +43,7 @@ from typing import Any
 
 from physrover.config import ConfigError, RunConfig, load_toml_file, naming_file
 from physrover.core import plugins
+from physrover.experiment.store import last_checkpoint
 
 
 @dataclass(frozen=True)
@@ -222,16 +223,13 @@ def run_progress(spec: RunSpec) -> tuple[str, int, int]:
     """(:func:`run_status`, the generation of the run's last checkpoint (0 without one),
     the run's length): a resume starts from that checkpoint, so a run that is training
     now is reported as far as it has checkpointed."""
-    import json
-
     out = Path(spec.out)
     length = RunConfig.from_toml(spec.config_toml).length
     if not out.exists():
         return "new", 0, length
-    state = out / "state.json"
-    if not state.exists():
+    generation = last_checkpoint(out)
+    if generation is None:
         return "partial", 0, length
-    generation = int(json.loads(state.read_text())["generation"])
     return ("done" if generation >= length else "partial"), generation, length
 
 
