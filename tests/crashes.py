@@ -112,7 +112,7 @@ def _inject(generation: int, step: int, mode: str) -> None:
     loop.save_state = save_state  # what the training loop calls
 
 
-def _count_steps(root: Path, generation: int, learner: str) -> dict:
+def _count_steps(root: Path, generation: int, learner: str) -> list[str]:
     """The I/O calls of the checkpoint of ``generation``, by name, in order."""
     from physrover.experiment import loop, training
 
@@ -142,23 +142,13 @@ def _count_steps(root: Path, generation: int, learner: str) -> dict:
             setattr(os, name, spy(name))
         loop.save_state = save_state  # what the training loop calls
         training.train(config(learner), root / "count", progress=False)
-        print(json.dumps(seen), flush=True)
+        (root / "steps.json").write_text(json.dumps(seen))
         return 0
 
-    read, write = os.pipe()
-    pid = os.fork()
-    if pid == 0:
-        os.close(read)
-        os.dup2(write, 1)
-        try:
-            work()
-        finally:
-            os._exit(0)
-    os.close(write)
-    with os.fdopen(read) as f:
-        text = f.read()
-    assert _status(pid) == "exit 0", text
-    return json.loads(text.strip().splitlines()[-1])
+    errors = root / "count.error"
+    status = _status(_child(work, errors))
+    assert status == "exit 0", errors.read_text() if errors.exists() else status
+    return json.loads((root / "steps.json").read_text())
 
 
 def last_saved(out: Path, learner: str) -> int | None:
