@@ -13,6 +13,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 
+from physrover.cli.benchmarl_cmd import cmd_benchmarl
 from physrover.cli.commands import (
     Interrupted,
     UsageError,
@@ -235,11 +236,33 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_sweep)
 
+    p = sub.add_parser(
+        "benchmarl",
+        help="train with BenchMARL (MAPPO, IPPO, MASAC, ...) on a physrover task "
+        "(needs physrover[benchmarl])",
+        description="A BenchMARL experiment from Hydra overrides, as BenchMARL's run.py takes "
+        "them; defaults: algorithm=mappo task=physrover/rover_domain experiment.loggers=[csv].",
+    )
+    p.add_argument(
+        "overrides",
+        nargs="*",
+        metavar="KEY=VALUE",
+        help="Hydra overrides, e.g. task.n_req=1 experiment.max_n_iters=20 seed=1",
+    )
+    p.add_argument(
+        "--out",
+        default="runs/benchmarl",
+        help="experiment folder (default runs/benchmarl, or the next free name)",
+    )
+    p.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    p.set_defaults(func=cmd_benchmarl)
+
     p = sub.add_parser("bench", help="time the world or the learner (benchmarks, not tests)")
     p.add_argument(
         "what",
-        choices=["world", "train", "paper"],
-        help="what to time ('paper': estimate the wall time of sweep files)",
+        choices=["world", "train", "paper", "envs"],
+        help="what to time ('paper': estimate the wall time of sweep files; 'envs': team "
+        "steps per second through each env interface, and VMAS discovery)",
     )
     p.add_argument(
         "sweeps", nargs="*", help="paper: sweep files (default: the paper's long sweeps)"

@@ -6,7 +6,9 @@
 - :mod:`~physrover.envs.pettingzoo_env`: :func:`parallel_env`, PettingZoo's parallel API
   (``pip install 'physrover[marl]'``; importing this package never needs pettingzoo);
 - :mod:`~physrover.envs.torchrl_env`: :class:`RoverTorchEnv`, a natively batched TorchRL
-  env over the vector env (``pip install 'physrover[torchrl]'``, needed only for it).
+  env over the vector env (``pip install 'physrover[torchrl]'``, needed only for it);
+- :mod:`~physrover.envs.benchmarl_task`: physrover's BenchMARL tasks over that env
+  (``pip install 'physrover[benchmarl]'``; importing it registers them with BenchMARL).
 
 May import: :mod:`physrover.core`, :mod:`physrover.config`, :mod:`physrover.domain`,
 :mod:`physrover.viz`.

@@ -74,6 +74,8 @@ class RoverTorchEnv(EnvBase):
             {"done": flag, "terminated": flag.clone(), "truncated": flag.clone()}, shape=(E,)
         )
         self._seed: int | None = None
+        self.group_map = {GROUP: [f"{GROUP}_{i}" for i in range(R)]}
+        """TorchRL's MARL convention (as ``VmasEnv.group_map``): group -> agent names."""
 
     def _tensor(self, array: np.ndarray) -> torch.Tensor:
         """A float32 tensor on the env's device, from the whole batch at once."""
