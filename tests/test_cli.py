@@ -326,3 +326,20 @@ def test_bench_train_reports_median_spread_and_phases():
     median, low, high = map(float, found.groups()[:3])
     assert low <= median <= high
     assert {part.split()[0] for part in found.group(4).split(", ")} >= {"rollout", "critic"}
+
+
+def test_bench_envs_drives_every_torchrl_env_with_the_actions_drawn_beforehand():
+    """The throughput table times the envs, not the drawing of actions: the policy writes
+    its bank of pre-drawn actions in turn, episode after episode."""
+    import torch
+
+    pytest.importorskip("torchrl")
+    from physrover.envs.torchrl_env import RoverTorchEnv
+    from physrover.experiment.bench_envs import _replay_policy
+
+    env = RoverTorchEnv(2, n_rovers=3, steps=4)
+    policy = _replay_policy(env, 4)
+    rollout = env.rollout(8, policy, break_when_any_done=False)
+    actions = rollout["rover", "action"]  # (2 teams, 8 steps, 3, 2)
+    assert torch.equal(actions[:, :4], actions[:, 4:])
+    assert not torch.equal(actions[:, 0], actions[:, 1])

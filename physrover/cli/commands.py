@@ -178,6 +178,17 @@ def cmd_bench(args: argparse.Namespace) -> int:
         return 0
     if args.what == "paper":
         return _bench_paper(args, bench)
+    if args.what == "envs":
+        from physrover.experiment.bench_envs import bench_envs
+
+        d = config.domain
+        print(f"envs: {d.n_rovers} rovers, {d.n_pois} POIs, n_req {max(d.n_req_per_poi)}, "
+              f"{d.steps} steps, motion={d.motion}; team steps per second, median of "
+              f"{args.repeats} episodes, {args.threads} thread(s)")  # fmt: skip
+        print("| env | teams | team steps/s | note |\n|---|---|---|---|")
+        for row in bench_envs(d, teams=args.teams, repeats=args.repeats):
+            print(row.line())
+        return 0
     raise UsageError(f"unknown benchmark {args.what!r}")
 
 
