@@ -85,6 +85,16 @@ class LearnConfig(ConfigBase):
     """State-action pairs per mini-batch, inexact updates."""
     pair_batches: int = 50
     """Mini-batches per generation, inexact updates."""
+    trajectory_loss: str = "mse"
+    """Beyond the paper, trajectory critics (``gru-critic``, ``gru-sum-critic``,
+    ``attention-critic``): "mse" (the value) or "rank" (a logistic loss on the order of
+    each pair of trajectories in a mini-batch; :mod:`physrover.learn.trajectory_critics`).
+    They draw ``trajectory_batches`` mini-batches of ``trajectory_batch`` trajectories from
+    the last ``replay_trajectories``."""
+    trajectory_hidden: int = 32
+    """Hidden size of a trajectory critic (the GRU's state, the attention's embedding)."""
+    trajectory_lr: float = 1e-3
+    """Adam's learning rate for a trajectory critic."""
     checkpoint_every: int = 100
     """Write a checkpoint every this many generations (and at the end)."""
 
@@ -119,6 +129,21 @@ class LearnConfig(ConfigBase):
                 name,
                 f"changes the fitness critic, which {self.method!r} does not have",
             )
+        check_choice(self.trajectory_loss, ("mse", "rank"), "trajectory_loss")
+        spec = FITNESS_METHODS[self.method] if self.method in FITNESS_METHODS else None
+        trajectory = bool(getattr(spec, "trajectory", False))
+        for name, default in (("trajectory_loss", "mse"), ("trajectory_hidden", 32),
+                              ("trajectory_lr", 1e-3)):  # fmt: skip
+            check(
+                getattr(self, name) == default or trajectory or self.method in TRAINERS,
+                name,
+                f"configures a trajectory critic, which {self.method!r} does not have",
+            )
+        check(
+            self.trajectory_lr > 0 and math.isfinite(self.trajectory_lr),
+            "trajectory_lr",
+            f"must be > 0, got {self.trajectory_lr}",
+        )
         check(
             self.critic_optimism >= 0 and math.isfinite(self.critic_optimism),
             "critic_optimism",
@@ -134,6 +159,7 @@ class LearnConfig(ConfigBase):
         check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
         self.check_at_least(
             1, "hidden", "n_samples", "eval_episodes", "critic_hidden", "critic_ensemble",
+            "trajectory_hidden",
             "replay_trajectories",
             "trajectory_batch", "trajectory_batches", "replay_pairs", "pair_batch",
             "pair_batches", "checkpoint_every",

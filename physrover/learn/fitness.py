@@ -212,14 +212,18 @@ class MethodSpec:
     """Where the paper describes it."""
     critic: bool = False
     """Whether it has a fitness critic (so the [learn] critic fields apply to it)."""
+    trajectory: bool = False
+    """Whether it has a trajectory critic (so the [learn] ``trajectory_*`` fields apply)."""
 
 
 def register_method(
-    name: str, build, summary: str, section: str, critic: bool = False
+    name: str, build, summary: str, section: str, critic: bool = False, trajectory: bool = False
 ) -> MethodSpec:
     """Add a fitness method under ``name`` (usable in TOML, ``--method`` and ``--set``);
-    ``critic``: it has a fitness critic, which the [learn] critic fields configure."""
-    return FITNESS_METHODS.register(name, MethodSpec(build, summary, section, critic))
+    ``critic``: it has a fitness critic, which the [learn] critic fields configure;
+    ``trajectory``: a trajectory critic, which the ``trajectory_*`` fields configure."""
+    spec = MethodSpec(build, summary, section, critic, trajectory)
+    return FITNESS_METHODS.register(name, spec)
 
 
 def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
@@ -244,6 +248,31 @@ def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
     return CriticFitness(
         FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)
     )
+
+
+TRAJECTORY_CRITICS = {
+    "gru-critic": ("gru", "final"),
+    "gru-sum-critic": ("gru", "sum"),
+    "attention-critic": ("attention", "final"),
+}
+
+
+def _trajectory_critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
+    from physrover.learn.trajectory_critics import TrajectoryCritic, TrajectorySettings
+
+    model, readout = TRAJECTORY_CRITICS[cfg.method]
+    settings = TrajectorySettings(
+        model=model,
+        readout=readout,
+        loss=cfg.trajectory_loss,
+        hidden=cfg.trajectory_hidden,
+        lr=cfg.trajectory_lr,
+        capacity=cfg.replay_trajectories,
+        batch=cfg.trajectory_batch,
+        batches=cfg.trajectory_batches,
+    )
+    return CriticFitness(TrajectoryCritic(problem.n_rovers, problem.steps, problem.pair_dim,
+                                          settings, rng))  # fmt: skip
 
 
 register_method(
@@ -303,6 +332,29 @@ register_method(
     "fitness critic, mean over the trajectory, inexact updates",
     "Sec. 3.1, 3.3 (Eqs. 4, 6, 9-10)",
     critic=True,
+)
+
+
+register_method(
+    "gru-critic",
+    _trajectory_critic,
+    "trajectory critic: a GRU over the whole episode, read out at its end",
+    "beyond the paper (trajectory critics)",
+    trajectory=True,
+)
+register_method(
+    "gru-sum-critic",
+    _trajectory_critic,
+    "trajectory critic: a GRU over the whole episode, the sum of its per-step values",
+    "beyond the paper (trajectory critics)",
+    trajectory=True,
+)
+register_method(
+    "attention-critic",
+    _trajectory_critic,
+    "trajectory critic: self-attention over the episode's steps, mean-pooled",
+    "beyond the paper (trajectory critics)",
+    trajectory=True,
 )
 
 
