@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from physrover.core.compiled import jit
+from physrover.domain.broadphase import GRID_MIN_POINTS, near_pairs
 from physrover.domain.kernels import _move
 
 CONTACT_SWEEPS = 20
@@ -122,8 +123,9 @@ def speculative_contacts(positions, velocities, contact, mass, radius, capsules,
     driven into a wall passes the wall's push back along the column about a pair per
     sweep; sweeping in alternate directions did not converge faster). The pairs visited
     are those that could meet within the step, listed once per team (positions do not
-    change during the pass). Coincident centres (no normal) are skipped: the spawn
-    separation keeps rovers apart.
+    change during the pass) by :func:`physrover.domain.broadphase.near_pairs`: every pair
+    is tested in small teams, a uniform grid finds them in large ones. Coincident centres
+    (no normal) are skipped: the spawn separation keeps rovers apart.
 
     Args:
         positions: (E, R, 2) centres at the start of the physics step.
@@ -136,14 +138,16 @@ def speculative_contacts(positions, velocities, contact, mass, radius, capsules,
             obstacles are also Chipmunk shapes, whose own contacts then hold).
     """
     n_teams, n_rovers = positions.shape[0], positions.shape[1]
-    near = np.empty((n_rovers * (n_rovers - 1) // 2, 2), np.int64)
-    widest = 0.0
+    # The pairs within reach, in index order (the broad phase: every pair below
+    # GRID_MIN_POINTS rovers, a grid from there; the same list either way).
+    rows = n_rovers * (n_rovers - 1) // 2 if n_rovers < GRID_MIN_POINTS else 8 * n_rovers
+    near = np.empty((max(rows, 1), 2), np.int64)
+    widest = 0.0  # the widest contact distance, max r_i + r_j = 2 max r_i
     if contact is not None:
         for i in range(n_rovers):
-            for j in range(n_rovers):
-                widest = max(widest, contact[i, j])
+            widest = max(widest, contact[i, i])
     for e in range(n_teams):
-        n_near = 0  # the pairs within reach, in index order: the only ones the sweeps visit
+        n_near = 0  # the only pairs the sweeps visit
         if contact is not None:
             # Pairs farther apart than this cannot meet within the step.
             v_max_sq = 0.0
@@ -151,15 +155,7 @@ def speculative_contacts(positions, velocities, contact, mass, radius, capsules,
                 v_sq = velocities[e, i, 0] ** 2 + velocities[e, i, 1] ** 2
                 v_max_sq = max(v_max_sq, v_sq)
             reach = widest + 2.0 * math.sqrt(v_max_sq) * dt
-            reach_sq = reach * reach
-            for i in range(n_rovers):
-                for j in range(i + 1, n_rovers):
-                    dx = positions[e, j, 0] - positions[e, i, 0]
-                    dy = positions[e, j, 1] - positions[e, i, 1]
-                    d_sq = dx * dx + dy * dy
-                    if d_sq < reach_sq and d_sq >= 1e-24:
-                        near[n_near, 0], near[n_near, 1] = i, j
-                        n_near += 1
+            n_near, near = near_pairs(positions[e], reach * reach, near)
         for _ in range(iterations):
             changed = False
             if contact is not None:  # compiled out without collisions
