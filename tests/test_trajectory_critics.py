@@ -11,7 +11,7 @@ from test_learning import EASY
 
 from physrover.config import RunConfig
 from physrover.experiment.training import train
-from physrover.learn.critics import CriticSettings, FitnessCritic
+from physrover.learn.critics import CriticSettings, FitnessCritic, IntermediateCritics
 from physrover.learn.trajectory_critics import (
     TrajectoryCritic,
     TrajectorySettings,
@@ -19,6 +19,7 @@ from physrover.learn.trajectory_critics import (
     gru_values,
     init_params,
     rank_loss,
+    recurrent_max_steps,
 )
 
 
@@ -46,6 +47,40 @@ def test_the_gru_is_torchs_gru_rover_by_rover(readout):
         torch.testing.assert_close(ours[r], expected, rtol=1e-5, atol=1e-5)
 
 
+def test_recurrent_max_is_the_papers_critic_on_the_pair_and_the_gru_before_it():
+    rng = np.random.default_rng(5)
+    R, N, T, D, H, U = 2, 3, 6, 4, 5, 7
+    p = init_params("recurrent-max", R, T, D, H, rng, units=U)
+    p["b2"] += torch.tensor([[0.3], [-0.2]])
+    x = torch.from_numpy(rng.normal(size=(R, N, T, D)).astype(np.float32))
+    ours = recurrent_max_steps(p, x, 0.01)  # (R, N, T)
+    for r in range(R):
+        gru = torch.nn.GRU(D, H, batch_first=True)
+        with torch.no_grad():
+            gru.weight_ih_l0.copy_(p["W_x"][r].T)
+            gru.weight_hh_l0.copy_(p["W_h"][r].T)
+            gru.bias_ih_l0.copy_(p["b_x"][r])
+            gru.bias_hh_l0.copy_(p["b_h"][r])
+            states, _ = gru(x[r])
+        for n in range(N):
+            for t in range(T):
+                before = states[n, t - 1] if t else torch.zeros(H)
+                z = torch.cat([x[r, n, t], before]).double().numpy()
+                pre = z @ p["W1"][r].double().numpy() + p["b1"][r].double().numpy()
+                value = np.where(pre > 0, pre, 0.01 * pre).sum() + float(p["b2"][r, 0])
+                assert float(ours[r, n, t]) == pytest.approx(value, rel=1e-4, abs=1e-4)
+    # A GRU that always outputs 0 leaves the paper's critic (Eq. 2) on the pair alone.
+    for name in ("W_x", "b_x", "W_h", "b_h"):
+        p[name].zero_()
+    paper = IntermediateCritics(R, D, U, 0.01, rng)
+    paper.W1[...] = p["W1"][:, :D].numpy()
+    paper.b1[...] = p["b1"].numpy()
+    paper.b2[...] = p["b2"][:, 0].numpy()
+    expected = paper(x.reshape(R, N * T, D).numpy()).reshape(R, N, T)
+    np.testing.assert_allclose(recurrent_max_steps(p, x, 0.01).numpy(), expected, rtol=1e-5,
+                               atol=1e-5)  # fmt: skip
+
+
 def test_the_attention_critic_is_its_plain_loop():
     rng = np.random.default_rng(1)
     R, N, T, D, H = 2, 3, 5, 4, 6
@@ -71,6 +106,7 @@ def test_the_attention_critic_is_its_plain_loop():
 
 
 @pytest.mark.parametrize("model,readout", [("gru", "final"), ("gru", "sum"),
+                                           ("recurrent-max", "max"),
                                            ("attention", "final")])  # fmt: skip
 @pytest.mark.parametrize("loss", ["mse", "rank"])
 def test_gradients_match_finite_differences(model, readout, loss):
@@ -83,7 +119,12 @@ def test_gradients_match_finite_differences(model, readout, loss):
 
     def objective(*params):
         named = dict(zip(p, params, strict=True))
-        values = gru_values(named, x, readout) if model == "gru" else attention_values(named, x)
+        if model == "gru":
+            values = gru_values(named, x, readout)
+        elif model == "recurrent-max":
+            values = recurrent_max_steps(named, x, 0.01).amax(-1)
+        else:
+            values = attention_values(named, x)
         return ((values - f) ** 2).mean() if loss == "mse" else rank_loss(values, f)
 
     assert torch.autograd.gradcheck(objective, tuple(p.values()), eps=1e-6, atol=1e-5)
@@ -151,7 +192,9 @@ def test_seeded_construction_and_updates_repeat():
     assert not np.array_equal(a["W_x"], c["W_x"])
 
 
-@pytest.mark.parametrize("method", ["gru-critic", "gru-sum-critic", "attention-critic"])
+@pytest.mark.parametrize(
+    "method", ["gru-critic", "gru-sum-critic", "recurrent-max-critic", "attention-critic"]
+)
 def test_resume_is_bit_identical(tmp_path, method):
     loss = "rank" if method == "gru-critic" else "mse"
     config = RunConfig().with_overrides({

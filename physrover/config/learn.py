@@ -87,10 +87,12 @@ class LearnConfig(ConfigBase):
     """Mini-batches per generation, inexact updates."""
     trajectory_loss: str = "mse"
     """Beyond the paper, trajectory critics (``gru-critic``, ``gru-sum-critic``,
-    ``attention-critic``): "mse" (the value) or "rank" (a logistic loss on the order of
-    each pair of trajectories in a mini-batch; :mod:`physrover.learn.trajectory_critics`).
-    They draw ``trajectory_batches`` mini-batches of ``trajectory_batch`` trajectories from
-    the last ``replay_trajectories``."""
+    ``recurrent-max-critic``, ``attention-critic``): "mse" (the value) or "rank" (a
+    logistic loss on the order of each pair of trajectories in a mini-batch;
+    :mod:`physrover.learn.trajectory_critics`). They draw ``trajectory_batches``
+    mini-batches of ``trajectory_batch`` trajectories from the last ``replay_trajectories``;
+    ``recurrent-max-critic``'s per-pair critic has ``critic_hidden`` units of slope
+    ``leaky_slope`` and learns at ``critic_lr`` with ``critic_optimizer``, as the paper's."""
     trajectory_hidden: int = 32
     """Hidden size of a trajectory critic (the GRU's state, the attention's embedding)."""
     trajectory_lr: float = 1e-3
@@ -139,6 +141,11 @@ class LearnConfig(ConfigBase):
                 name,
                 f"configures a trajectory critic, which {self.method!r} does not have",
             )
+        if self.method == "recurrent-max-critic":  # the paper's update: critic_lr, every step
+            for name, default in (("trajectory_loss", "mse"), ("trajectory_lr", 1e-3)):
+                check(getattr(self, name) == default, name,
+                      "recurrent-max-critic learns as the paper's critic (critic_lr and "
+                      "critic_optimizer, every step's value on the squared error)")  # fmt: skip
         check(
             self.trajectory_lr > 0 and math.isfinite(self.trajectory_lr),
             "trajectory_lr",

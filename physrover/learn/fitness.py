@@ -22,6 +22,7 @@ one-line summary and the paper section, listed by ``physrover methods``); a new 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -253,6 +254,7 @@ def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
 TRAJECTORY_CRITICS = {
     "gru-critic": ("gru", "final"),
     "gru-sum-critic": ("gru", "sum"),
+    "recurrent-max-critic": ("recurrent-max", "max"),
     "attention-critic": ("attention", "final"),
 }
 
@@ -270,7 +272,11 @@ def _trajectory_critic(cfg: LearnConfig, problem: Problem, rng: np.random.Genera
         capacity=cfg.replay_trajectories,
         batch=cfg.trajectory_batch,
         batches=cfg.trajectory_batches,
+        units=cfg.critic_hidden,
+        slope=cfg.leaky_slope,
     )
+    if model == "recurrent-max":  # learns as the paper's critic (module docstring)
+        settings = dataclasses.replace(settings, optimizer=cfg.critic_optimizer, lr=cfg.critic_lr)
     return CriticFitness(TrajectoryCritic(problem.n_rovers, problem.steps, problem.pair_dim,
                                           settings, rng))  # fmt: skip
 
@@ -346,6 +352,14 @@ register_method(
     "gru-sum-critic",
     _trajectory_critic,
     "trajectory critic: a GRU over the whole episode, the sum of its per-step values",
+    "beyond the paper (trajectory critics)",
+    trajectory=True,
+)
+register_method(
+    "recurrent-max-critic",
+    _trajectory_critic,
+    "trajectory critic: the max critic whose pairs also see a GRU's summary of the steps "
+    "before them",
     "beyond the paper (trajectory critics)",
     trajectory=True,
 )
