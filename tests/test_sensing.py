@@ -187,19 +187,21 @@ def _sector_oracle(rovers, headings, pois, values, d_min, n, radius):
     return out
 
 
-@pytest.mark.parametrize(("n", "radius"), [(4, np.inf), (6, np.inf), (3, np.inf), (6, 5.0)])
-def test_sectors_and_radius_match_the_plain_loop_oracle(n, radius):
+@pytest.mark.parametrize(("n", "radius", "n_rovers"), [(4, np.inf, 7), (6, np.inf, 7),
+                                                    (3, np.inf, 7), (6, 5.0, 7),
+                                                    (6, 5.0, 70), (4, 3.0, 70)])  # fmt: skip
+def test_sectors_and_radius_match_the_plain_loop_oracle(n, radius, n_rovers):
     rng = np.random.default_rng(n)
-    rovers = rng.uniform(-8, 8, (5, 7, 2))
-    headings = rng.uniform(-np.pi, np.pi, (5, 7))
+    rovers = rng.uniform(-8, 8, (5, n_rovers, 2))
+    headings = rng.uniform(-np.pi, np.pi, (5, n_rovers))
     pois = rng.uniform(-8, 8, (5, 3, 2))
     values = rng.uniform(1, 4, (5, 3))
-    state = WorldState.zeros(5, 7, 3)
+    state = WorldState.zeros(5, n_rovers, 3)
     for name, value in (("rover_positions", rovers), ("rover_headings", headings),
                         ("poi_positions", pois), ("poi_values", values)):  # fmt: skip
         getattr(state, name)[:] = value
     kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
-    obs = np.empty((5, 7, 2 * n), dtype=np.float32)
+    obs = np.empty((5, n_rovers, 2 * n), dtype=np.float32)
     kernels.sense(state, 1.0, (0,) * n, radius**2 if radius < np.inf else None, obs)
     expected = _sector_oracle(rovers, headings, pois, values, 1.0, n, radius)
     np.testing.assert_allclose(obs, expected, rtol=1e-6, atol=1e-9)
@@ -273,12 +275,14 @@ def _same_order_observe(state, d_min, radius_sq=None):
     return out
 
 
-@pytest.mark.parametrize("n_rovers", [1, 4, 15, 16, 17, 33])
-@pytest.mark.parametrize("radius", [None, 4.0])
+@pytest.mark.parametrize("n_rovers", [1, 4, 15, 16, 17, 33, 60, 130])
+@pytest.mark.parametrize("radius", [None, 4.0, 1.5])
 def test_the_vectorised_quadrant_sensor_is_the_plain_loop_bit_for_bit(n_rovers, radius):
     """The compiled sensor adds +0.0 to the three other channels of each object, over
     lanes padded to 16 rovers: the same sums in the same order as the plain loop. Positions
-    on a coarse grid put objects on the quadrant boundaries and at equal distances."""
+    on a coarse grid put objects on the quadrant boundaries and at equal distances (and
+    exactly at the radius, and on each other). From 48 rovers a radius takes the grid
+    (:func:`physrover.domain.sense_kernels._sense_local`): still the same sums."""
     rng = np.random.default_rng(n_rovers)
     state = WorldState.zeros(3, n_rovers, 4)
     state.rover_positions[:] = rng.integers(-6, 7, (3, n_rovers, 2)) * 0.5

@@ -18,6 +18,9 @@ The cost is O(R log R + pairs) a team instead of O(R^2). Below
 :data:`GRID_MIN_POINTS` points the all-pairs loop (:func:`near_pairs_all`) is faster and
 is used; both return identical lists (tested on crowds, impacts and columns against
 walls). Coincident points (distance below 1e-12) are never listed: they have no normal.
+
+:func:`neighbour_lists` is the same grid for a sensor with a finite radius: every point's
+neighbours within the radius (inclusive, coincident ones too), ascending.
 """
 
 from __future__ import annotations
@@ -54,12 +57,10 @@ def near_pairs_all(points, reach_sq, near):
 
 
 @jit
-def near_pairs_grid(points, reach_sq, near):
-    """:func:`near_pairs_all` from a uniform grid (the module docstring): the same pairs in
-    the same order. ``near`` grows (a new array is returned) when the pairs outnumber its
-    rows; returns (count, near)."""
+def _grid(points, cell):
+    """The grid of (R, 2) ``points`` with square cells of side ``cell``: each point's key,
+    the points in key order, the sorted keys, and the key's row width."""
     n = points.shape[0]
-    cell = math.sqrt(reach_sq) * _CELL_MARGIN
     cx = np.empty(n, np.int64)
     cy = np.empty(n, np.int64)
     for i in range(n):
@@ -69,25 +70,45 @@ def near_pairs_grid(points, reach_sq, near):
     width = cy.max() - y0 + 3
     keys = (cx - x0 + 1) * width + (cy - y0 + 1)
     order = np.argsort(keys, kind="mergesort")
-    sorted_keys = keys[order]
+    return keys, order, keys[order], width
+
+
+@jit
+def _neighbours(points, i, reach_sq, inclusive, above, keys, order, sorted_keys, width, found):
+    """The points j (j > i if ``above``, else every j != i) within reach of point i, from
+    the 3 x 3 cells around its own, written to ``found`` unsorted; returns how many. Within
+    reach: squared distance < ``reach_sq`` and >= 1e-24, or <= ``reach_sq`` if
+    ``inclusive`` (then coincident points count too)."""
+    n_found = 0
+    for column in range(-1, 2):
+        centre = keys[i] + column * width
+        lo = np.searchsorted(sorted_keys, centre - 1, side="left")
+        hi = np.searchsorted(sorted_keys, centre + 1, side="right")
+        for slot in range(lo, hi):
+            j = order[slot]
+            if j == i or (above and j < i):
+                continue
+            dx = points[j, 0] - points[i, 0]
+            dy = points[j, 1] - points[i, 1]
+            d_sq = dx * dx + dy * dy
+            if (d_sq <= reach_sq) if inclusive else (reach_sq > d_sq >= 1e-24):
+                found[n_found] = j
+                n_found += 1
+    return n_found
+
+
+@jit
+def near_pairs_grid(points, reach_sq, near):
+    """:func:`near_pairs_all` from a uniform grid (the module docstring): the same pairs in
+    the same order. ``near`` grows (a new array is returned) when the pairs outnumber its
+    rows; returns (count, near)."""
+    n = points.shape[0]
+    keys, order, sorted_keys, width = _grid(points, math.sqrt(reach_sq) * _CELL_MARGIN)
     found = np.empty(n, np.int64)
     n_near = 0
     for i in range(n):
-        n_found = 0
-        for column in range(-1, 2):
-            centre = keys[i] + column * width
-            lo = np.searchsorted(sorted_keys, centre - 1, side="left")
-            hi = np.searchsorted(sorted_keys, centre + 1, side="right")
-            for slot in range(lo, hi):
-                j = order[slot]
-                if j <= i:
-                    continue
-                dx = points[j, 0] - points[i, 0]
-                dy = points[j, 1] - points[i, 1]
-                d_sq = dx * dx + dy * dy
-                if d_sq < reach_sq and d_sq >= 1e-24:
-                    found[n_found] = j
-                    n_found += 1
+        n_found = _neighbours(points, i, reach_sq, False, True, keys, order, sorted_keys,
+                              width, found)  # fmt: skip
         if n_near + n_found > near.shape[0]:
             grown = np.empty((2 * (n_near + n_found), 2), np.int64)
             grown[:n_near] = near[:n_near]
@@ -97,6 +118,32 @@ def near_pairs_grid(points, reach_sq, near):
             near[n_near, 0], near[n_near, 1] = i, found[k]
             n_near += 1
     return n_near, near
+
+
+@jit
+def neighbour_lists(points, radius_sq):
+    """For each of (R, 2) ``points``, the others within ``sqrt(radius_sq)`` (squared
+    distance <= ``radius_sq``, coincident points included), ascending, from the grid:
+    ``(starts, items)``, point i's list ``items[starts[i]:starts[i + 1]]``."""
+    n = points.shape[0]
+    keys, order, sorted_keys, width = _grid(points, math.sqrt(radius_sq) * _CELL_MARGIN)
+    found = np.empty(n, np.int64)
+    starts = np.empty(n + 1, np.int64)
+    items = np.empty(8 * n, np.int64)
+    count = 0
+    for i in range(n):
+        starts[i] = count
+        n_found = _neighbours(points, i, radius_sq, True, False, keys, order, sorted_keys,
+                              width, found)  # fmt: skip
+        if count + n_found > items.shape[0]:
+            grown = np.empty(2 * (count + n_found), np.int64)
+            grown[:count] = items[:count]
+            items = grown
+        found[:n_found].sort()
+        items[count : count + n_found] = found[:n_found]
+        count += n_found
+    starts[n] = count
+    return starts, items
 
 
 @jit

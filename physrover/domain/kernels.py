@@ -2,7 +2,8 @@
 idealised motion (Section 4.1.2). Each takes the world's state, a
 :class:`~physrover.domain.state.WorldState`, and writes only its own part of it.
 
-- :func:`sense`: the sector densities of Eqs. 14-16 (:mod:`physrover.domain.sensors`);
+- :func:`sense`: the sector densities of Eqs. 14-16 (:mod:`physrover.domain.sensors`;
+  its kernels are in :mod:`physrover.domain.sense_kernels`, re-exported here);
 - :func:`score`: one step's captures (Eqs. 12-13), G so far (Eq. 11) and the
   counterfactual captures of D (Eq. 1), :mod:`physrover.domain.scoring`;
 - :func:`move`: the idealised motion of every rover;
@@ -36,24 +37,15 @@ import math
 import numpy as np
 
 from physrover.core.compiled import jit
+from physrover.domain.sense_kernels import (  # noqa: F401 (the sensor's kernels, re-exported)
+    PAD,
+    quadrant,
+    sector,
+    sense,
+    sense_scratch,
+    sense_team,
+)
 from physrover.domain.state import WorldState
-
-
-@jit
-def quadrant(forward: float, left: float) -> int:
-    """Quadrant of an offset (forward, left) in the rover's frame (the convention of
-    :mod:`physrover.domain.sensors`).
-
-    Branch-free (the quadrants of random objects defeat branch prediction): bit 1 is the
-    half (bearing in [0, pi), dead ahead and the rover's own spot included), bit 0 the
-    quadrant within it (behind in the upper half, dead left included; front in the lower
-    half, dead right included).
-    """
-    upper = np.int64((left > 0.0) | ((left == 0.0) & (forward >= 0.0)))
-    behind = np.int64((forward < 0.0) | ((forward == 0.0) & (left > 0.0)))
-    ahead = np.int64(forward >= 0.0)
-    low = (upper & behind) | ((1 - upper) & ahead)
-    return 2 * upper + low
 
 
 @jit
@@ -78,153 +70,6 @@ def _move(cos_h, sin_h, heading, fwd, left, headings):
         return mx, my, np.nan
     new_heading = math.atan2(my, mx) if (fwd != 0.0 or left != 0.0) else heading
     return mx, my, new_heading
-
-
-@jit
-def sector(forward: float, left: float, n_sectors: int) -> int:
-    """Sector (0 .. n - 1) of an offset (forward, left) in the rover's frame: n equal
-    sectors of bearing counter-clockwise from dead behind, a boundary bearing in the sector
-    that starts there. Four sectors: :func:`quadrant` (exact on the boundaries); otherwise
-    ``floor((atan2(left, forward) + pi) n / (2 pi))``, a bearing of pi (dead behind) in
-    sector 0."""
-    if n_sectors == 4:
-        return quadrant(forward, left)
-    q = np.int64(math.floor((math.atan2(left, forward) + math.pi) * n_sectors / (2 * math.pi)))
-    return q if q < n_sectors else 0
-
-
-PAD = 16
-"""The quadrant sensor's loops over a team's rovers run over a multiple of this many lanes
-(LLVM vectorises them 4 doubles x 4 interleaved; a remainder would run scalar)."""
-
-
-@jit
-def sense_scratch(n_rovers, sectors):
-    """Scratch of :func:`sense_team`: (4 + 2 n_sectors, width) float64, rows the rovers' x, y,
-    cos and sin (padded lanes: a rover at the origin facing +x, never read back) and the
-    channels' sums, ``width`` >= R a multiple of :data:`PAD` (and >= 2 n_sectors)."""
-    n_sectors = len(sectors)
-    width = max(-(-n_rovers // PAD) * PAD, 2 * n_sectors)
-    scratch = np.zeros((4 + 2 * n_sectors, width))
-    scratch[2, :] = 1.0
-    return scratch
-
-
-@jit
-def _sense_quadrants(e, state, d_min_sq, radius_sq, obs, scratch):
-    """Eqs. 14-16 in four quadrants for the rovers of team ``e``, vectorised over the
-    observing rovers: for each object (rovers by index, then POIs) every rover's four
-    channel sums get the object's term or +0.0 (the same sums, in the same order, as adding
-    it to its one channel; an unseen object or the rover itself adds +0.0 everywhere)."""
-    positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
-    poi_positions, poi_values = state.poi_positions, state.poi_values
-    n_rovers = cos_h.shape[1]
-    n_pois = poi_positions.shape[1]
-    width = scratch.shape[1]
-    px, py, cs, sn = scratch[0], scratch[1], scratch[2], scratch[3]
-    r0, r1, r2, r3 = scratch[4], scratch[5], scratch[6], scratch[7]  # Eq. 15 by quadrant
-    p0, p1, p2, p3 = scratch[8], scratch[9], scratch[10], scratch[11]  # Eq. 16 by quadrant
-    for i in range(n_rovers):
-        px[i] = positions[e, i, 0]
-        py[i] = positions[e, i, 1]
-        cs[i] = cos_h[e, i]
-        sn[i] = sin_h[e, i]
-    for i in range(width):
-        r0[i] = r1[i] = r2[i] = r3[i] = p0[i] = p1[i] = p2[i] = p3[i] = 0.0
-    # The two loops below differ only in the numerator, the self lane and the sums they add
-    # to; one helper called for both halved their speed (37 -> 69 us per 50-team step: the
-    # call kept LLVM from vectorising), so they stay written out.
-    for j in range(n_rovers):  # the other rovers, numerator 1
-        xj = positions[e, j, 0]
-        yj = positions[e, j, 1]
-        for i in range(width):
-            dx = xj - px[i]
-            dy = yj - py[i]
-            dist_sq = dx * dx + dy * dy
-            w = 1.0 / max(dist_sq, d_min_sq)  # Eq. 14
-            if radius_sq is not None:
-                w = w if dist_sq <= radius_sq else 0.0
-            w = w if i != j else 0.0
-            q = quadrant(cs[i] * dx + sn[i] * dy, cs[i] * dy - sn[i] * dx)
-            r0[i] += w if q == 0 else 0.0
-            r1[i] += w if q == 1 else 0.0
-            r2[i] += w if q == 2 else 0.0
-            r3[i] += w if q == 3 else 0.0
-    for k in range(n_pois):  # the POIs, numerator V_k
-        xk = poi_positions[e, k, 0]
-        yk = poi_positions[e, k, 1]
-        value = poi_values[e, k]
-        for i in range(width):
-            dx = xk - px[i]
-            dy = yk - py[i]
-            dist_sq = dx * dx + dy * dy
-            w = value / max(dist_sq, d_min_sq)
-            if radius_sq is not None:
-                w = w if dist_sq <= radius_sq else 0.0
-            q = quadrant(cs[i] * dx + sn[i] * dy, cs[i] * dy - sn[i] * dx)
-            p0[i] += w if q == 0 else 0.0
-            p1[i] += w if q == 1 else 0.0
-            p2[i] += w if q == 2 else 0.0
-            p3[i] += w if q == 3 else 0.0
-    for i in range(n_rovers):
-        obs[e, i, 0] = r0[i]
-        obs[e, i, 1] = r1[i]
-        obs[e, i, 2] = r2[i]
-        obs[e, i, 3] = r3[i]
-        obs[e, i, 4] = p0[i]
-        obs[e, i, 5] = p1[i]
-        obs[e, i, 6] = p2[i]
-        obs[e, i, 7] = p3[i]
-
-
-@jit
-def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
-    """Eqs. 14-16 for the rovers of team ``e`` in ``len(sectors)`` sectors: ``obs[e]``
-    (R, 2 n_sectors) from ``state``, objects farther than ``sqrt(radius_sq)`` unseen (None:
-    none); ``scratch`` from :func:`sense_scratch`. Each channel adds its terms object by
-    object (rovers by index, then POIs).
-
-    ``sectors`` is a tuple of n zeros (:func:`physrover.core.compiled.dims`) and ``radius_sq``
-    may be None: the compiler then knows the sector count and whether there is a radius,
-    and compiles the paper's sensor (4 sectors, no radius) as if it were written alone.
-    Four sectors take the vectorised :func:`_sense_quadrants`; others the loop below.
-    """
-    n_sectors = len(sectors)
-    if n_sectors == 4:
-        _sense_quadrants(e, state, d_min_sq, radius_sq, obs, scratch)
-        return
-    positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
-    poi_positions, poi_values = state.poi_positions, state.poi_values
-    n_rovers = cos_h.shape[1]
-    n_pois = poi_positions.shape[1]
-    acc = scratch[4]  # by sector: Eq. 15 in 0 .. n-1, Eq. 16 in n .. 2n-1
-    for i in range(n_rovers):
-        c = cos_h[e, i]
-        s = sin_h[e, i]
-        xi = positions[e, i, 0]
-        yi = positions[e, i, 1]
-        acc[:] = 0.0
-        for j in range(n_rovers):  # the other rovers, numerator 1
-            if j == i:
-                continue
-            dx = positions[e, j, 0] - xi
-            dy = positions[e, j, 1] - yi
-            dist_sq = dx * dx + dy * dy
-            if radius_sq is not None and dist_sq > radius_sq:  # beyond the radius
-                continue
-            dist_sq = max(dist_sq, d_min_sq)  # Eq. 14
-            acc[sector(c * dx + s * dy, c * dy - s * dx, n_sectors)] += 1.0 / dist_sq
-        for k in range(n_pois):  # the POIs, numerator V_k
-            dx = poi_positions[e, k, 0] - xi
-            dy = poi_positions[e, k, 1] - yi
-            dist_sq = dx * dx + dy * dy
-            if radius_sq is not None and dist_sq > radius_sq:
-                continue
-            dist_sq = max(dist_sq, d_min_sq)
-            q = n_sectors + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
-            acc[q] += poi_values[e, k] / dist_sq
-        for q in range(2 * n_sectors):
-            obs[e, i, q] = acc[q]
 
 
 @jit
@@ -264,17 +109,6 @@ def score_team(e, state, d_cap_sq, n_req, t):
         if captured[e, k]:  # Eq. 11
             total += state.poi_values[e, k]
     state.score[e] = total
-
-
-@jit
-def sense(state, d_min, sectors, radius_sq, obs):
-    """The density sensor (Eqs. 14-16) of every rover of every team in ``len(sectors)``
-    sectors (a tuple of zeros, :func:`physrover.core.compiled.dims`), blind beyond
-    ``sqrt(radius_sq)`` world units (None: sees everything): ``obs`` (E, R, 2 n_sectors)
-    float32, written."""
-    scratch = sense_scratch(state.cos_h.shape[1], sectors)
-    for e in range(state.cos_h.shape[0]):
-        sense_team(e, state, d_min * d_min, sectors, radius_sq, obs, scratch)
 
 
 @jit
