@@ -343,3 +343,16 @@ def test_bench_envs_drives_every_torchrl_env_with_the_actions_drawn_beforehand()
     actions = rollout["rover", "action"]  # (2 teams, 8 steps, 3, 2)
     assert torch.equal(actions[:, :4], actions[:, 4:])
     assert not torch.equal(actions[:, 0], actions[:, 1])
+
+
+def test_bench_world_scaling_spreads_large_teams_and_rejects_bad_sizes(capsys):
+    from physrover.config import DomainConfig
+    from physrover.experiment.bench import scaling_config
+
+    config = scaling_config(DomainConfig(n_req=3), 1000)
+    assert config.n_rovers == 1000 and config.scenario.spawn_radius == pytest.approx(40.0)
+    assert scaling_config(DomainConfig(n_req=3), 15) == DomainConfig(n_rovers=15, n_req=3)
+    assert scaling_config(DomainConfig(n_req=3), 2).n_req == 2
+    with pytest.raises(SystemExit):
+        main(["bench", "world", "--rovers", "15,0"])
+    assert "positive integers" in capsys.readouterr().err

@@ -162,6 +162,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     pin_threads(args.threads)
     config = _run_config(args)
+    if args.what == "world" and args.rovers:
+        d = config.domain
+        print(f"world: M rover-steps per second, reset + {d.steps} steps, random actions, "
+              f"motion={d.motion}, about 1500 rovers in all, median of {args.repeats}, "
+              f"{args.threads} thread(s)")  # fmt: skip
+        print("| rovers per team | teams | M rover-steps/s |\n|---|---|---|")
+        for n_rovers, teams, rate in bench.bench_scaling(d, args.rovers, repeats=args.repeats):
+            print(f"| {n_rovers} | {teams} | {rate:.2f} |")
+        return 0
     if args.what == "world":
         timing = bench.bench_world(config.domain, n_teams=args.teams, repeats=args.repeats)
         print(timing.line())

@@ -274,6 +274,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--methods", help="comma-separated methods for 'train' (default: all)")
     _add_motion_args(p, "the config's")
     p.add_argument("--teams", type=int, default=50, help="teams stepped together (default 50)")
+    p.add_argument("--rovers", type=_int_list, metavar="R,R,...",
+                   help="world: the scaling table over these team sizes (about 1500 rovers "
+                        "in all), e.g. 15,100,400,1000")  # fmt: skip
     p.add_argument("--repeats", type=int, default=20, help="timed runs/generations (default 20)")
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
     _add_config_args(p)
@@ -297,6 +300,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     with warnings.catch_warnings():
         warnings.showwarning = _show_warning
         return _run(args)
+
+
+def _int_list(text: str) -> list[int]:
+    """``15,100,400`` -> [15, 100, 400]; positive integers only."""
+    try:
+        values = [int(part) for part in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected integers like 15,100,400, got {text!r}"
+        ) from None
+    if not values or min(values) < 1:
+        raise argparse.ArgumentTypeError(f"expected positive integers, got {text!r}")
+    return values
 
 
 def _subparser(parser: argparse.ArgumentParser, name: str | None):

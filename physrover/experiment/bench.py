@@ -7,6 +7,7 @@ Run through the CLI, e.g. ``physrover bench world``; pin one thread for comparab
 from __future__ import annotations
 
 import dataclasses
+import math
 import statistics
 import time
 from dataclasses import dataclass
@@ -54,6 +55,32 @@ def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> T
         name += (f" (collisions={config.physics.collisions}, substeps={config.physics.substeps},"
                  f" stepped by {stepper})")  # fmt: skip
     return Timing(name, statistics.median(runs), tuple(runs))
+
+
+def scaling_config(config: DomainConfig, n_rovers: int) -> DomainConfig:
+    """``config`` with ``n_rovers`` rovers (n_req at most R); above 15 rovers they start in
+    a disc of radius 40 sqrt(R / 1000) (the paper's 1.5 cannot hold them: 1000 rovers of
+    radius 0.2 would start piled on each other)."""
+    fields = {"n_rovers": n_rovers, "n_req": min(max(config.n_req_per_poi), n_rovers)}
+    if n_rovers > 15:
+        fields["scenario"] = {**config.scenario.table(), "spawn_radius": 40.0 * math.sqrt(
+            n_rovers / 1000.0)}  # fmt: skip
+    return config.replace(**fields)
+
+
+def bench_scaling(config: DomainConfig, rovers: list[int], total: int = 1500,
+                  repeats: int = 5) -> list[tuple[int, int, float]]:  # fmt: skip
+    """For each team size R: (R, teams, M rover-steps per second) of reset + ``steps``
+    steps of the vector env with random actions, about ``total`` rovers in all
+    (max(1, total // R) teams), median of ``repeats`` timed episodes
+    (:func:`scaling_config` spreads large teams)."""
+    rows = []
+    for n_rovers in rovers:
+        teams = max(1, total // n_rovers)
+        timing = bench_world(scaling_config(config, n_rovers), teams, repeats)
+        rate = teams * n_rovers * config.steps / (timing.median_ms / 1000.0) / 1e6
+        rows.append((n_rovers, teams, rate))
+    return rows
 
 
 def bench_train(config, methods, generations: int = 10) -> list[str]:
