@@ -225,3 +225,30 @@ def test_obstacle_contacts_hold_at_every_impact_phase_and_angle(integrator):
         worst = min(worst, np.hypot(*world.rover_positions[:, 0].T).min())
     radius = DomainConfig().physics.rover_radius
     assert worst >= 1.0 + radius - 0.01 * radius - 1e-9
+
+
+def test_spawn_density_grows_the_disc_with_the_team_and_a_thousand_rovers_start_apart():
+    import math
+
+    from physrover import DomainConfig, RoverVectorEnv
+    from physrover.config import ConfigError
+    from physrover.domain.physics import pair_overlaps
+
+    paper = DomainConfig(n_rovers=1000).scenario
+    assert paper.disc_radius(1000) == 1.5  # off by default: the paper's disc at any R
+    dense = DomainConfig(n_rovers=15, scenario={"kind": "ring", "spawn_density": 2.2})
+    assert dense.scenario.disc_radius(15) == 1.5  # 2.1 per unit^2 already: the disc stays
+    assert dense.scenario.disc_radius(1000) == pytest.approx(math.sqrt(1000 / (2.2 * math.pi)))
+    config = DomainConfig(n_rovers=1000, motion="physics",
+                          scenario={"kind": "ring", "spawn_density": 0.2})  # fmt: skip
+    env = RoverVectorEnv(2, config)
+    env.reset(seed=3)
+    positions = env.world.state.rover_positions
+    assert np.hypot(*positions.reshape(-1, 2).T).max() <= 39.9 + 0.5
+    # none of 2 x 499,500 pairs overlaps by more than the spawn separation's slop (~0.1%)
+    assert pair_overlaps(positions, 0.2).max() <= 0.005
+    with pytest.raises(ConfigError, match="wall_half_size"):  # walls must hold the grown disc
+        DomainConfig(n_rovers=1000, motion="physics", walls=True, wall_half_size=30.0,
+                     scenario={"kind": "ring", "spawn_density": 0.2})  # fmt: skip
+    with pytest.raises(ConfigError, match="spawn_density"):
+        DomainConfig(scenario={"kind": "ring", "spawn_density": -1.0})

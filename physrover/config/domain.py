@@ -135,6 +135,16 @@ DEFAULT_KINDS = {"scenario": "ring", "sensor": "density"}
 SCORED_STATES = ("all", "before-steps")
 
 
+def extent_of(scenario, n_rovers: int, spawn: bool = False) -> float:
+    """The scenario's :meth:`~Scenario.extent` (``spawn``: :meth:`~Scenario.spawn_extent`)
+    for a team of ``n_rovers``: through ``extent_for`` / ``spawn_extent_for`` where the
+    scenario defines them (its start depends on the team's size), else the plain ones."""
+    sized = getattr(scenario, "spawn_extent_for" if spawn else "extent_for", None)
+    if sized is not None:
+        return float(sized(n_rovers))
+    return float(scenario.spawn_extent() if spawn else scenario.extent())
+
+
 @dataclasses.dataclass(frozen=True)
 class DomainConfig(ConfigBase):
     """The tightly coupled multi-rover domain (paper Sections 4.1-4.2).
@@ -224,7 +234,7 @@ class DomainConfig(ConfigBase):
         physics.check_rovers(self.n_rovers)
         if physics.walls:
             radius = float(physics.per_rover("rover_radius", self.n_rovers).max())
-            inner = self.scenario.spawn_extent() + 2 * radius
+            inner = extent_of(self.scenario, self.n_rovers, spawn=True) + 2 * radius
             check(
                 physics.wall_half_size > inner,
                 "wall_half_size",

@@ -93,6 +93,7 @@ import pymunk
 import pymunk.batch as pb
 
 from physrover.config import DomainConfig
+from physrover.config.domain import extent_of
 from physrover.domain.dynamics import Dynamics, register_dynamics
 from physrover.domain.kernels import heading_trig
 from physrover.domain.obstacles import box_corners
@@ -248,7 +249,7 @@ class PhysicsMotion(Dynamics):
         if cfg.physics.walls:
             reach = cfg.physics.wall_half_size
         else:  # the farthest a rover can get: commanded speed <= sqrt(2) per step, margin 2x
-            reach = cfg.scenario.extent() + 2.0 * math.sqrt(2) * cfg.steps
+            reach = extent_of(cfg.scenario, cfg.n_rovers) + 2.0 * math.sqrt(2) * cfg.steps
         spacing = 2.0 * reach + 4.0 * float(self.radius.max()) + 1.0
         cols = math.ceil(math.sqrt(self.n_teams))
         index = np.arange(self.n_teams)

@@ -41,6 +41,7 @@ its own generator, and the same seeds give the same start states.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from typing import ClassVar, NamedTuple
 
@@ -163,9 +164,23 @@ class SpawnDisc(Scenario):
 
     spawn_radius: float = 1.5
     """Rovers start uniformly at random in a disc of this radius at the origin, world units."""
+    spawn_density: float = 0.0
+    """Large teams (beyond the paper): at most this many rovers per square world unit of the
+    spawn disc, which grows to radius ``sqrt(R / (pi spawn_density))`` where
+    ``spawn_radius`` would hold more (0: off, the disc is ``spawn_radius`` at any R). The
+    paper's 15 rovers in radius 1.5 are 2.1 per unit^2; 0.2 spreads 1000 rovers over
+    radius 40 (2.5% of the disc under rovers of radius 0.2)."""
 
     def validate(self) -> None:
         self.check_positive("spawn_radius")
+        check(self.spawn_density >= 0 and math.isfinite(self.spawn_density), "spawn_density",
+              f"must be >= 0 (0: off), got {self.spawn_density}")  # fmt: skip
+
+    def disc_radius(self, n_rovers: int) -> float:
+        """The spawn disc's radius for a team of ``n_rovers`` (see ``spawn_density``)."""
+        if self.spawn_density <= 0:
+            return self.spawn_radius
+        return max(self.spawn_radius, math.sqrt(n_rovers / (math.pi * self.spawn_density)))
 
     def pois(self, rngs: Sequence[np.random.Generator], n_pois: int) -> np.ndarray:
         """(E, K, 2) POI positions, world units."""
@@ -176,7 +191,7 @@ class SpawnDisc(Scenario):
         raise NotImplementedError
 
     def draw(self, rngs, n_rovers, poi_values):
-        positions, headings = spawn_in_disc(rngs, n_rovers, self.spawn_radius)
+        positions, headings = spawn_in_disc(rngs, n_rovers, self.disc_radius(n_rovers))
         pois = self.pois(rngs, len(poi_values))
         return StartState(positions, headings, pois, per_team(poi_values, len(rngs)))
 
@@ -185,6 +200,13 @@ class SpawnDisc(Scenario):
 
     def spawn_extent(self) -> float:
         return self.spawn_radius
+
+    def extent_for(self, n_rovers: int) -> float:
+        """:meth:`extent` for a team of ``n_rovers`` (the disc may grow with the team)."""
+        return max(self.poi_extent(), self.disc_radius(n_rovers))
+
+    def spawn_extent_for(self, n_rovers: int) -> float:
+        return self.disc_radius(n_rovers)
 
 
 @register_scenario

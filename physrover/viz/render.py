@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from physrover.config import ConfigBase, DomainConfig, check
+from physrover.config.domain import extent_of
 from physrover.domain.obstacles import box_corners
 from physrover.viz.video import VideoError, VideoWriter
 
@@ -137,7 +138,7 @@ class Transform:
                 (T + 1, R, 2) positions of a whole episode); default: none.
         """
         if poi_positions is None:
-            half = domain.scenario.extent() + domain.d_cap
+            half = extent_of(domain.scenario, domain.n_rovers) + domain.d_cap
             lo, hi = np.full(2, -half), np.full(2, half)
         else:
             pois = np.asarray(poi_positions, dtype=np.float64).reshape(-1, 2)
