@@ -296,3 +296,21 @@ def test_obstacles_are_drawn_where_they_are():
     assert np.abs(frame[row, col] - (110, 110, 110)).max() <= 2
     col, row = np.round(tf([7.0, 7.0 + 2.5])).astype(int)  # just outside it: background
     assert np.abs(frame[row, col] - (246, 246, 246)).max() <= 2
+
+
+def test_a_crowd_of_a_thousand_is_dots_of_one_colour_under_visible_pois():
+    from physrover.viz.render import CROWD_COLOUR, PALETTE_RGB, POI_CAPTURED, POI_FREE
+
+    env = RoverEnv(render_mode="rgb_array", n_rovers=1000, motion="physics",
+                   scenario={"kind": "ring", "spawn_density": 0.2})  # fmt: skip
+    env.reset(seed=0)
+    frame = env.render()
+    colours = {tuple(c) for c in frame.reshape(-1, 3)[::7]}
+    assert not colours & {tuple(c) for c in PALETTE_RGB}  # no rover in its own colour
+    crowd = np.all(frame == CROWD_COLOUR[::-1], axis=-1)
+    assert crowd.sum() >= 1000 // 2  # a dot a rover (some touch), at least a pixel each
+    tf = Transform.fit_states([world_state(env.unwrapped.world, 0)], env.unwrapped.config,
+                              RenderConfig())  # fmt: skip
+    for centre in np.round(tf(env.unwrapped.world.poi_positions[0])).astype(int):
+        pixel = tuple(frame[centre[1], centre[0]])
+        assert pixel in (POI_FREE[::-1], POI_CAPTURED[::-1])  # drawn over the crowd

@@ -11,6 +11,10 @@ A frame shows one team:
   distinct, a heading tick and a trail of its last positions.
 - While the team is a tight clump (the spawn disc at the first steps), a zoomed inset of it
   at the top right, its area marked by a grey rectangle in the main view.
+- A crowd (more rovers than the palette's :data:`CROWD` colours, which could no longer
+  tell them apart) is drawn as a crowd: each rover a dot of one colour at its true size (at
+  least a pixel), without trails, ticks or inset, and the POIs drawn again on top, so a
+  thousand rovers stay a legible density around visible POIs.
 - A HUD with the step, G, n_req and the motion model (and, for physics, collisions on/off),
   and a one-line legend of the POI labels, in a band at the top that the view keeps clear
   (:data:`HUD_PX`; the bottom band, :data:`FOOTER_PX`, is a panel's label).
@@ -56,6 +60,9 @@ PALETTE_RGB = [
     (115, 213, 255), (71, 52, 115), (166, 166, 33), (0, 115, 115), (0, 76, 255),
 ]  # fmt: skip
 PALETTE = [c[::-1] for c in PALETTE_RGB]  # BGR, as OpenCV draws
+CROWD = len(PALETTE)
+"""Teams of more rovers than this are drawn as a crowd (module docstring)."""
+CROWD_COLOUR = (120, 70, 40)  # BGR: a crowd's rovers (dark blue, apart from POI greys/greens)
 ROVER_PX = 6
 """Smallest drawn rover radius, pixels (the body's true size when larger)."""
 
@@ -218,11 +225,17 @@ def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig,
                  ids: bool = False) -> None:  # fmt: skip
     """Draw (n, R, 2) world positions as trails ending in outlined bodies with heading ticks
     (later indices on top); bodies at their true size, at least ``ROVER_PX`` pixels;
-    ``ids``: each rover's index beside its body."""
+    ``ids``: each rover's index beside its body. A crowd (more than :data:`CROWD` rovers):
+    dots at their true size, at least a pixel, nothing else."""
     aa = cv2.LINE_AA
     radii = domain.physics.per_rover("rover_radius", positions.shape[1])  # to scale, per rover
     trail = tf(positions)  # (n, R, 2) pixels
     now = trail[-1]
+    if now.shape[0] > CROWD:
+        for i in range(now.shape[0]):
+            radius_px = max(1, int(round(tf.scale * radii[i])))
+            cv2.circle(img, _pt(now[i]), radius_px, CROWD_COLOUR, -1, aa)
+        return
     if len(trail) > 1:
         for i in range(now.shape[0]):
             pts = np.round(trail[:, i]).astype(np.int32).reshape(-1, 1, 2)
@@ -242,6 +255,20 @@ def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig,
             _text(img, str(i), corner, 0.35, rover_colour(i), halo=True)
 
 
+def _draw_pois(img, tf: Transform, state, domain: DomainConfig) -> list:
+    """The POIs: capture ring and a disc sized by value, grey, green once captured; returns
+    their pixel centres."""
+    aa = cv2.LINE_AA
+    vmax, ring_px = float(np.max(state.poi_values)), max(1, int(tf.scale * domain.d_cap))
+    centres = [_pt(p) for p in tf(state.poi_positions)]
+    for k, value in enumerate(state.poi_values):
+        captured = 0 <= state.capture_step[k] <= state.step
+        colour = POI_CAPTURED if captured else POI_FREE
+        cv2.circle(img, centres[k], ring_px, colour, 1, aa)
+        cv2.circle(img, centres[k], int(4 + 8 * value / vmax), colour, -1, aa)
+    return centres
+
+
 def _draw_clump_inset(img, now, headings, tf: Transform, domain: DomainConfig) -> None:
     """While the team is a clump, zoom into it in an inset at the top right.
 
@@ -251,7 +278,7 @@ def _draw_clump_inset(img, now, headings, tf: Transform, domain: DomainConfig) -
     at the default sizes), and any later equally tight clump."""
     now = now[np.isfinite(now).all(1)]
     size = min(img.shape[:2]) // 4
-    if len(now) < 2:
+    if len(now) < 2 or len(now) > CROWD:  # a crowd's inset would be as crowded
         return
     lo, hi = now.min(0) - 0.5, now.max(0) + 0.5
     scale = (size - 6 * ROVER_PX) / float(np.max(hi - lo))  # room for bodies and ticks
@@ -296,18 +323,15 @@ def draw_frame(
     tf = transform or Transform.fit_states([state], domain, render)
     img = np.empty((render.height, render.width, 3), dtype=np.uint8)
     img[:] = BACKGROUND
-    aa = cv2.LINE_AA
     _draw_obstacles(img, tf, domain.scenario)  # under everything else
-    # POIs: capture ring and a disc sized by value; then the rovers: trails and bodies.
-    vmax, ring_px = float(np.max(state.poi_values)), max(1, int(tf.scale * domain.d_cap))
-    centres = [_pt(p) for p in tf(state.poi_positions)]
-    for k, value in enumerate(state.poi_values):
-        captured = 0 <= state.capture_step[k] <= state.step
-        colour = POI_CAPTURED if captured else POI_FREE
-        cv2.circle(img, centres[k], ring_px, colour, 1, aa)
-        cv2.circle(img, centres[k], int(4 + 8 * value / vmax), colour, -1, aa)
+    # POIs: capture ring and a disc sized by value; then the rovers: trails and bodies
+    # (a crowd's POIs again on top of it).
+    centres = _draw_pois(img, tf, state, domain)
+    ring_px = max(1, int(tf.scale * domain.d_cap))
     _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain,
                  render.ids)  # fmt: skip
+    if state.positions.shape[1] > CROWD:
+        _draw_pois(img, tf, state, domain)
     # POI labels on top of the rovers: the value and the rovers in range / n_req.
     counts = state.poi_counts
     for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
