@@ -192,3 +192,39 @@ def test_the_old_engine_variable_is_noted_not_obeyed(capsys, monkeypatch):
     monkeypatch.setenv("PHYSROVER_ENGINE", "numpy")
     assert main(["methods"]) == 0
     assert "PHYSROVER_ENGINE is no longer read" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("motion", ["ideal", "physics"])
+def test_a_hundred_rover_team_trains_and_its_fitness_is_each_rovers_own_d(motion):
+    """Big teams are first-class: a CCEA generation of 100 rovers (10 policies each) under
+    both motion models, each policy's fitness its own episode's D."""
+    config = RunConfig().with_overrides({
+        "n_rovers": 100, "n_req": 3, "population": 10, "steps": 20, "method": "D",
+        "motion": motion, "scenario": {"kind": "ring", "spawn_density": 2.0},
+    })  # fmt: skip
+    ccea = CCEA(config)
+    seen = {}
+    real = ccea.rollout
+
+    def spy(index):
+        seen["index"] = index
+        return real(index)
+
+    ccea.rollout = spy
+    ccea.run_generation()
+    teams = seen["index"][:10]
+    D = ccea.env.world.D[:10]
+    for r in range(100):
+        assert sorted(teams[:, r]) == list(range(10))
+        np.testing.assert_array_equal(ccea.fitness[r, teams[:, r]], D[:, r])
+
+
+def test_a_hundred_rover_max_critic_run_resumes_bit_identically(tmp_path):
+    config = RunConfig().with_overrides({
+        "n_rovers": 100, "n_req": 3, "population": 6, "steps": 15, "method": "max-critic",
+        "checkpoint_every": 2, "replay_pairs": 2000, "eval_episodes": 2,
+    })  # fmt: skip
+    full = train(config, tmp_path / "full", generations=4, progress=False)
+    part = train(config, tmp_path / "part", generations=3, progress=False)
+    train(None, part, resume=True, generations=4, progress=False)
+    assert_same_run(full, part)
