@@ -31,8 +31,11 @@ import numpy as np
 
 from physrover.core.compiled import jit
 
-GRID_MIN_POINTS = 48
-"""Teams of at least this many rovers take the grid; smaller ones test every pair."""
+GRID_MIN_POINTS = 4096
+"""Teams of at least this many rovers take the grid; smaller ones test every pair.
+Provisional: measured at 100 rovers (2026-12-02, EPYC Zen 4) the grid made the physical
+world 1.6x and a radius-5 sensor 4.7x slower than testing every pair, so it is off at
+every team size measured until the crossover is measured (issue 32)."""
 
 _CELL_MARGIN = 1.0 + 1e-9
 """A cell is this much wider than the reach: two points closer than the reach then always

@@ -324,8 +324,7 @@ def draw_frame(
     img = np.empty((render.height, render.width, 3), dtype=np.uint8)
     img[:] = BACKGROUND
     _draw_obstacles(img, tf, domain.scenario)  # under everything else
-    # POIs: capture ring and a disc sized by value; then the rovers: trails and bodies
-    # (a crowd's POIs again on top of it).
+    # POIs (rings, discs by value); the rovers' trails and bodies; a crowd's POIs on top.
     centres = _draw_pois(img, tf, state, domain)
     ring_px = max(1, int(tf.scale * domain.d_cap))
     _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain,
