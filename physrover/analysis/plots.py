@@ -52,6 +52,10 @@ METHOD_COLOURS = {
     "hall-of-fame": "C6",
     "max-critic-regular": "C7",
     "mean-critic-inexact": "C8",
+    "gru-critic": "C9",
+    "gru-sum-critic": "navy",
+    "recurrent-max-critic": "black",
+    "attention-critic": "darkgoldenrod",
 }
 
 
