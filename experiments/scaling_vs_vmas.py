@@ -17,12 +17,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import statistics
-import time
 
 from physrover.config import DomainConfig
 from physrover.core.threads import pin_threads
-from physrover.experiment.bench import bench_scaling
+from physrover.experiment.bench import bench_scaling, median_seconds
 
 COLUMNS = {
     "idealised, paper's sensor": DomainConfig(n_req=3),
@@ -53,13 +51,7 @@ def vmas_rate(n_agents: int, repeats: int, steps: int = 50, total: int = 1500) -
         for step in actions:
             env.step(step)
 
-    episode()
-    runs = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        episode()
-        runs.append(time.perf_counter() - start)
-    return envs * n_agents * steps / statistics.median(runs) / 1e6
+    return envs * n_agents * steps / median_seconds(episode, 1, repeats) / 1e6
 
 
 def main() -> None:

@@ -61,8 +61,9 @@ def test_hall_of_fame_tests_each_policy_with_the_best_team():
     assert hof.score > 0
 
 
-def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
-    ccea = CCEA(RunConfig().with_overrides({**EASY, "method": "D", "n_rovers": 4, "n_req": 2}))
+def _assert_each_policy_plays_once_with_its_own_d(ccea):
+    """Run a generation of ``ccea`` (method D): each rover's k policies play once each in
+    the k training teams, and each policy's fitness is its own episode's D."""
     seen = {}
 
     def spy(index):
@@ -72,12 +73,17 @@ def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
     real = ccea.rollout
     ccea.rollout = spy
     ccea.run_generation()
-    teams = seen["index"][:20]  # training teams; the rest are the champion's
-    for r in range(4):
-        assert sorted(teams[:, r]) == list(range(20))
-    D = ccea.env.world.D[:20]
-    for r in range(4):
+    k, n_rovers = ccea.fitness.shape[1], ccea.fitness.shape[0]
+    teams = seen["index"][:k]  # training teams; the rest are the champion's
+    D = ccea.env.world.D[:k]
+    for r in range(n_rovers):
+        assert sorted(teams[:, r]) == list(range(k))
         np.testing.assert_array_equal(ccea.fitness[r, teams[:, r]], D[:, r])
+
+
+def test_each_policy_plays_once_per_round_and_fitness_is_its_own_feedback():
+    ccea = CCEA(RunConfig().with_overrides({**EASY, "method": "D", "n_rovers": 4, "n_req": 2}))
+    _assert_each_policy_plays_once_with_its_own_d(ccea)
 
 
 @pytest.mark.parametrize(
@@ -202,21 +208,7 @@ def test_a_hundred_rover_team_trains_and_its_fitness_is_each_rovers_own_d(motion
         "n_rovers": 100, "n_req": 3, "population": 10, "steps": 20, "method": "D",
         "motion": motion, "scenario": {"kind": "ring", "spawn_density": 2.0},
     })  # fmt: skip
-    ccea = CCEA(config)
-    seen = {}
-    real = ccea.rollout
-
-    def spy(index):
-        seen["index"] = index
-        return real(index)
-
-    ccea.rollout = spy
-    ccea.run_generation()
-    teams = seen["index"][:10]
-    D = ccea.env.world.D[:10]
-    for r in range(100):
-        assert sorted(teams[:, r]) == list(range(10))
-        np.testing.assert_array_equal(ccea.fitness[r, teams[:, r]], D[:, r])
+    _assert_each_policy_plays_once_with_its_own_d(CCEA(config))
 
 
 def test_a_hundred_rover_max_critic_run_resumes_bit_identically(tmp_path):

@@ -27,6 +27,19 @@ def _settings(model="gru", readout="final", loss="mse", hidden=8, lr=1e-2, batch
     return TrajectorySettings(model, readout, loss, hidden, lr, 400, batch, batches)
 
 
+def _torch_gru_states(p, r, x):
+    """torch.nn.GRU with rover r's weights of ``p`` over its (N, T, D) trajectories
+    ``x[r]``: the (N, T, H) hidden states h_0 ... h_{T-1}."""
+    D, H = p["W_x"].shape[1], p["W_h"].shape[1]
+    gru = torch.nn.GRU(D, H, batch_first=True)
+    with torch.no_grad():
+        gru.weight_ih_l0.copy_(p["W_x"][r].T)
+        gru.weight_hh_l0.copy_(p["W_h"][r].T)
+        gru.bias_ih_l0.copy_(p["b_x"][r])
+        gru.bias_hh_l0.copy_(p["b_h"][r])
+        return gru(x[r])[0]
+
+
 @pytest.mark.parametrize("readout", ["final", "sum"])
 def test_the_gru_is_torchs_gru_rover_by_rover(readout):
     rng = np.random.default_rng(0)
@@ -35,13 +48,7 @@ def test_the_gru_is_torchs_gru_rover_by_rover(readout):
     x = torch.from_numpy(rng.normal(size=(R, N, T, D)).astype(np.float32))
     ours = gru_values(p, x, readout)
     for r in range(R):
-        gru = torch.nn.GRU(D, H, batch_first=True)
-        with torch.no_grad():
-            gru.weight_ih_l0.copy_(p["W_x"][r].T)
-            gru.weight_hh_l0.copy_(p["W_h"][r].T)
-            gru.bias_ih_l0.copy_(p["b_x"][r])
-            gru.bias_hh_l0.copy_(p["b_h"][r])
-            states, last = gru(x[r])  # (N, T, H), (1, N, H)
+        states = _torch_gru_states(p, r, x)  # (N, T, H)
         per_step = states @ p["w"][r] + p["b"][r]  # (N, T, 1)
         expected = per_step[:, -1, 0] if readout == "final" else per_step[..., 0].sum(-1)
         torch.testing.assert_close(ours[r], expected, rtol=1e-5, atol=1e-5)
@@ -55,13 +62,7 @@ def test_recurrent_max_is_the_papers_critic_on_the_pair_and_the_gru_before_it():
     x = torch.from_numpy(rng.normal(size=(R, N, T, D)).astype(np.float32))
     ours = recurrent_max_steps(p, x, 0.01)  # (R, N, T)
     for r in range(R):
-        gru = torch.nn.GRU(D, H, batch_first=True)
-        with torch.no_grad():
-            gru.weight_ih_l0.copy_(p["W_x"][r].T)
-            gru.weight_hh_l0.copy_(p["W_h"][r].T)
-            gru.bias_ih_l0.copy_(p["b_x"][r])
-            gru.bias_hh_l0.copy_(p["b_h"][r])
-            states, _ = gru(x[r])
+        states = _torch_gru_states(p, r, x)
         for n in range(N):
             for t in range(T):
                 before = states[n, t - 1] if t else torch.zeros(H)

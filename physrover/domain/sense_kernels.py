@@ -136,6 +136,27 @@ def _sense_quadrants(e, state, d_min_sq, radius_sq, obs, scratch):
 
 
 @jit
+def _add_pois(e, i, state, c, s, d_min_sq, n_sectors, radius_sq, acc, obs):
+    """Rover i of team e (heading cosine ``c``, sine ``s``): each POI's term of Eq. 16
+    (numerator V_k) added to its sector of ``acc[n_sectors:]``, POIs beyond
+    ``sqrt(radius_sq)`` left out (None: none), in POI order; then the 2 n_sectors channels
+    of ``acc`` written to ``obs[e, i]``."""
+    poi_positions, poi_values = state.poi_positions, state.poi_values
+    xi, yi = state.rover_positions[e, i, 0], state.rover_positions[e, i, 1]
+    for k in range(poi_positions.shape[1]):
+        dx = poi_positions[e, k, 0] - xi
+        dy = poi_positions[e, k, 1] - yi
+        dist_sq = dx * dx + dy * dy
+        if radius_sq is not None and dist_sq > radius_sq:
+            continue
+        dist_sq = max(dist_sq, d_min_sq)
+        q = n_sectors + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
+        acc[q] += poi_values[e, k] / dist_sq
+    for q in range(2 * n_sectors):
+        obs[e, i, q] = acc[q]
+
+
+@jit
 def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
     """Eqs. 14-16 for the rovers of team ``e`` in ``len(sectors)`` sectors: ``obs[e]``
     (R, 2 n_sectors) from ``state``, objects farther than ``sqrt(radius_sq)`` unseen (None:
@@ -155,9 +176,7 @@ def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
         _sense_quadrants(e, state, d_min_sq, radius_sq, obs, scratch)
         return
     positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
-    poi_positions, poi_values = state.poi_positions, state.poi_values
     n_rovers = cos_h.shape[1]
-    n_pois = poi_positions.shape[1]
     acc = scratch[4]  # by sector: Eq. 15 in 0 .. n-1, Eq. 16 in n .. 2n-1
     for i in range(n_rovers):
         c = cos_h[e, i]
@@ -175,17 +194,7 @@ def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
                 continue
             dist_sq = max(dist_sq, d_min_sq)  # Eq. 14
             acc[sector(c * dx + s * dy, c * dy - s * dx, n_sectors)] += 1.0 / dist_sq
-        for k in range(n_pois):  # the POIs, numerator V_k
-            dx = poi_positions[e, k, 0] - xi
-            dy = poi_positions[e, k, 1] - yi
-            dist_sq = dx * dx + dy * dy
-            if radius_sq is not None and dist_sq > radius_sq:
-                continue
-            dist_sq = max(dist_sq, d_min_sq)
-            q = n_sectors + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
-            acc[q] += poi_values[e, k] / dist_sq
-        for q in range(2 * n_sectors):
-            obs[e, i, q] = acc[q]
+        _add_pois(e, i, state, c, s, d_min_sq, n_sectors, radius_sq, acc, obs)
 
 
 @jit
@@ -195,8 +204,6 @@ def _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs, scratch):
     ascending) and then of the POIs within it, the same terms in the same order as the
     all-pairs loops, whose unseen objects add +0.0."""
     positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
-    poi_positions, poi_values = state.poi_positions, state.poi_values
-    n_pois = poi_positions.shape[1]
     starts, items = neighbour_lists(positions[e], radius_sq)
     acc = scratch[4]
     for i in range(cos_h.shape[1]):
@@ -209,17 +216,7 @@ def _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs, scratch):
             dy = positions[e, j, 1] - yi
             dist_sq = max(dx * dx + dy * dy, d_min_sq)  # Eq. 14
             acc[sector(c * dx + s * dy, c * dy - s * dx, n_sectors)] += 1.0 / dist_sq
-        for k in range(n_pois):
-            dx = poi_positions[e, k, 0] - xi
-            dy = poi_positions[e, k, 1] - yi
-            dist_sq = dx * dx + dy * dy
-            if dist_sq > radius_sq:
-                continue
-            dist_sq = max(dist_sq, d_min_sq)
-            q = n_sectors + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
-            acc[q] += poi_values[e, k] / dist_sq
-        for q in range(2 * n_sectors):
-            obs[e, i, q] = acc[q]
+        _add_pois(e, i, state, c, s, d_min_sq, n_sectors, radius_sq, acc, obs)
 
 
 @jit

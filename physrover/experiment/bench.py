@@ -111,7 +111,7 @@ def bench_train(config, methods, generations: int = 10) -> list[str]:
     return lines
 
 
-def _median_seconds(step, warm_up: int, repeats: int) -> float:
+def median_seconds(step, warm_up: int, repeats: int) -> float:
     """Median seconds of ``repeats`` calls of ``step()`` after ``warm_up`` untimed ones."""
     for _ in range(warm_up):
         step()
@@ -127,7 +127,7 @@ def time_generation(config, generations: int = 3) -> float:
     """Median seconds per generation of a run with ``config`` (after two warm-up ones)."""
     from physrover.learn.ccea import CCEA
 
-    return _median_seconds(CCEA(config).run_generation, 2, generations)
+    return median_seconds(CCEA(config).run_generation, 2, generations)
 
 
 def time_iteration(config, iterations: int = 3) -> float:
@@ -141,7 +141,7 @@ def time_iteration(config, iterations: int = 3) -> float:
     if hasattr(trainer_config, "warmup_steps"):
         trainer_config = dataclasses.replace(trainer_config, warmup_steps=0)
     trainer = TRAINERS[config.learn.method].load()(trainer_config, config.domain)
-    return _median_seconds(trainer.iteration, 1, iterations)
+    return median_seconds(trainer.iteration, 1, iterations)
 
 
 def time_step(config, repeats: int = 3) -> float:

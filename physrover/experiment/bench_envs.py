@@ -21,8 +21,6 @@ installed says so instead of a number.
 
 from __future__ import annotations
 
-import statistics
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -30,6 +28,7 @@ import numpy as np
 
 from physrover.config import DomainConfig
 from physrover.envs.gymnasium_env import RoverVectorEnv
+from physrover.experiment.bench import median_seconds
 
 
 @dataclass(frozen=True)
@@ -47,14 +46,9 @@ class Throughput:
 
 
 def _median_rate(episode: Callable[[], None], team_steps: int, repeats: int) -> float:
-    """Team steps per second: ``team_steps`` over the median time of one ``episode()``."""
-    episode()  # warm-up: compilation, caches
-    runs = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        episode()
-        runs.append(time.perf_counter() - start)
-    return team_steps / statistics.median(runs)
+    """Team steps per second: ``team_steps`` over the median time of one ``episode()``
+    (after one untimed: compilation, caches)."""
+    return team_steps / median_seconds(episode, 1, repeats)
 
 
 def _replay_policy(env, steps: int):
