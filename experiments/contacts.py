@@ -14,7 +14,11 @@ Three cases, each under the given config (default: physics with collisions, the 
   at the end (steady contact);
 - column: ten rovers in a column driven into a box, and into the walls, for 30 steps: the
   worst overlap of two rovers at a step end (the wall stops the front rover; the pass must
-  stop the rest behind it).
+  stop the rest behind it);
+- converge: a team driven at full command towards its centre for 50 steps, a jam that
+  tightens every step, at 15 rovers (the paper's spawn) and at 1000 (spread as ``physrover
+  bench world --rovers`` spreads them, where the grid finds the contact pairs): worst and
+  median overlap of the pairs in contact (issue 32: contacts at 1000 rovers as at 15).
 
 Overlap is ``max(0, r_i + r_j - distance) / (r_i + r_j)``: a fraction of a diameter.
 The time per step is ``physrover bench world --motion physics``'s job.
@@ -95,6 +99,28 @@ def column(config: DomainConfig, into: str) -> dict:
     return {"worst": float(worst)}
 
 
+def converge(config: DomainConfig, n_rovers: int, teams: int = 2) -> dict:
+    from physrover.experiment.bench import scaling_config
+
+    cfg = scaling_config(config, n_rovers).replace(steps=50)
+    env = RoverVectorEnv(teams, config=cfg)
+    _, info = env.reset(seed=0)
+    positions, headings = info["rover_positions"], info["rover_headings"]
+    seen = []
+    for _ in range(cfg.steps):
+        toward = -positions / np.maximum(np.linalg.norm(positions, axis=-1, keepdims=True), 1e-9)
+        c, s = np.cos(headings), np.sin(headings)  # the command is in the rover's frame
+        command = np.stack([c * toward[..., 0] + s * toward[..., 1],
+                            -s * toward[..., 0] + c * toward[..., 1]], axis=-1)  # fmt: skip
+        _, _, _, _, info = env.step(command)
+        positions, headings = info["rover_positions"], info["rover_headings"]
+        seen.append(overlaps(positions, cfg.physics.rover_radius))
+    seen = np.concatenate(seen, axis=None)
+    touching = seen[seen > 0]
+    return {"worst": float(seen.max()), "median_in_contact": float(np.median(touching)),
+            "contacts": int(touching.size)}  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
@@ -109,6 +135,12 @@ def main() -> None:
         f"{100 * c['median_in_contact']:.1f}%; pushing: {100 * p['steady']:.1f}%; column "
         f"into a box: worst {100 * box['worst']:.1f}%, into a wall: {100 * wall['worst']:.1f}%"
     )
+    for n_rovers in (15, 1000):
+        jam = converge(config, n_rovers)
+        print(
+            f"converge, {n_rovers} rovers: worst {100 * jam['worst']:.1f}%, median in contact "
+            f"{100 * jam['median_in_contact']:.2f}% ({jam['contacts']} pair-steps in contact)"
+        )
 
 
 if __name__ == "__main__":

@@ -275,22 +275,64 @@ def _same_order_observe(state, d_min, radius_sq=None):
     return out
 
 
+def _coarse_state(n_teams, n_rovers, seed):
+    """Rovers and 4 POIs on a coarse grid (objects on quadrant boundaries, at equal
+    distances, exactly at a radius, on each other), headings on and off the axes."""
+    rng = np.random.default_rng(seed)
+    state = WorldState.zeros(n_teams, n_rovers, 4)
+    state.rover_positions[:] = rng.integers(-6, 7, (n_teams, n_rovers, 2)) * 0.5
+    state.rover_headings[:] = rng.choice([0.0, math.pi / 2, 1.0, -2.5], (n_teams, n_rovers))
+    state.poi_positions[:] = rng.integers(-8, 9, (n_teams, 4, 2)) * 1.0
+    state.poi_values[:] = rng.uniform(0.5, 4.0, (n_teams, 4))
+    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    return state
+
+
 @pytest.mark.parametrize("n_rovers", [1, 4, 15, 16, 17, 33, 60, 130])
 @pytest.mark.parametrize("radius", [None, 4.0, 1.5])
 def test_the_vectorised_quadrant_sensor_is_the_plain_loop_bit_for_bit(n_rovers, radius):
     """The compiled sensor adds +0.0 to the three other channels of each object, over
     lanes padded to 16 rovers: the same sums in the same order as the plain loop. Positions
     on a coarse grid put objects on the quadrant boundaries and at equal distances (and
-    exactly at the radius, and on each other). From 48 rovers a radius takes the grid
-    (:func:`physrover.domain.sense_kernels._sense_local`): still the same sums."""
-    rng = np.random.default_rng(n_rovers)
-    state = WorldState.zeros(3, n_rovers, 4)
-    state.rover_positions[:] = rng.integers(-6, 7, (3, n_rovers, 2)) * 0.5
-    state.rover_headings[:] = rng.choice([0.0, math.pi / 2, 1.0, -2.5], (3, n_rovers))
-    state.poi_positions[:] = rng.integers(-8, 9, (3, 4, 2)) * 1.0
-    state.poi_values[:] = rng.uniform(0.5, 4.0, (3, 4))
-    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    exactly at the radius, and on each other). (The grid path, which a radius takes from
+    SENSOR_GRID_MIN_POINTS rovers, is checked below.)"""
+    state = _coarse_state(3, n_rovers, seed=n_rovers)
     obs = np.empty((3, n_rovers, 8), dtype=np.float32)
     radius_sq = None if radius is None else radius * radius
     kernels.sense(state, 1.0, (0,) * 4, radius_sq, obs)
     np.testing.assert_array_equal(obs, _same_order_observe(state, 1.0, radius_sq))
+
+
+@pytest.mark.parametrize("n_rovers", [2, 7, 33, 90])
+@pytest.mark.parametrize("radius", [4.0, 1.5, 0.5])
+def test_the_grid_sensor_is_the_plain_loop_bit_for_bit(n_rovers, radius):
+    """The sensor's grid path (:func:`physrover.domain.sense_kernels._sense_local`, which
+    the world takes from SENSOR_GRID_MIN_POINTS rovers) called directly on small teams:
+    each pair adds its term to both rovers, and every rover still sums its objects in
+    index order. Coarse positions: objects on quadrant boundaries, exactly at the radius,
+    and on each other."""
+    from physrover.domain import sense_kernels
+
+    state = _coarse_state(2, n_rovers, seed=n_rovers)
+    obs = np.empty((2, n_rovers, 8), dtype=np.float32)
+    scratch = sense_kernels.sense_scratch(n_rovers, (0,) * 4)
+    for e in range(2):
+        sense_kernels._sense_local(e, state, 1.0, 4, radius * radius, obs, scratch)
+    np.testing.assert_array_equal(obs, _same_order_observe(state, 1.0, radius * radius))
+    assert n_rovers == 2 or (obs[..., :4] > 0).any()  # the radius left some rovers in view
+
+
+def test_a_team_above_the_grid_threshold_senses_as_the_plain_loop():
+    from physrover.domain.broadphase import SENSOR_GRID_MIN_POINTS
+
+    n_rovers = SENSOR_GRID_MIN_POINTS
+    rng = np.random.default_rng(0)
+    state = WorldState.zeros(1, n_rovers, 4)
+    state.rover_positions[:] = rng.uniform(-20, 20, (1, n_rovers, 2))
+    state.rover_headings[:] = rng.uniform(-math.pi, math.pi, (1, n_rovers))
+    state.poi_positions[:] = rng.uniform(-20, 20, (1, 4, 2))
+    state.poi_values[:] = 1.0
+    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    obs = np.empty((1, n_rovers, 8), dtype=np.float32)
+    kernels.sense(state, 1.0, (0,) * 4, 9.0, obs)
+    np.testing.assert_array_equal(obs, _same_order_observe(state, 1.0, 9.0))

@@ -2,25 +2,28 @@
 
 The contact pass (:func:`physrover.domain.physics_kernels.speculative_contacts`) needs the
 pairs (i, j), i < j, of a team's rovers closer than the distance they could close within a
-physics step; listing them by testing every pair costs R (R - 1) / 2 distance tests a
-physics step, which dominates at hundreds of rovers. :func:`near_pairs` lists the same
-pairs, in the same order (i ascending, then j ascending), from a uniform grid:
+physics step; a sensor with a finite radius needs the pairs within its radius; the spawn's
+separation the pairs that overlap. Listing them by testing every pair
+(:func:`near_pairs_all`) costs R (R - 1) / 2 distance tests, which dominates at hundreds
+of rovers. :func:`near_pairs_grid` lists the same pairs, in the same order (i ascending,
+then j ascending), from a cell list:
 
-1. each point falls in a square cell of side ``reach`` (slightly more, so rounding never
-   puts two points closer than ``reach`` two cells apart), cell (cx, cy) =
-   floor(p / cell);
-2. the points are sorted by the cell's key ``(cx - cx_min + 1) W + (cy - cy_min + 1)``
-   (W the key's row width), so each column of three neighbouring cells is one run of keys;
-3. each point i looks up the three runs of the 3 x 3 cells around its own (binary
-   search), keeps the j > i within reach, and sorts those by index.
+1. :func:`grid`: each point falls in a square cell of side ``reach`` (slightly more, so
+   rounding never puts two points closer than ``reach`` two cells apart) over the points'
+   bounding box; a counting sort puts the points in cell order (column by column), so
+   cells (cx, cy - 1 .. cy + 1) are one run of that order;
+2. each pair is tested once, from its first point in cell order (a half stencil): against
+   the rest of its cell and the cell above, one run, and the next column's three cells,
+   another; branch-free, in the cell order's copy of the coordinates;
+3. the pairs found are counted by their lower index and sorted by insertion within it.
 
-The cost is O(R log R + pairs) a team instead of O(R^2). Below
-:data:`GRID_MIN_POINTS` points the all-pairs loop (:func:`near_pairs_all`) is faster and
-is used; both return identical lists (tested on crowds, impacts and columns against
-walls). Coincident points (distance below 1e-12) are never listed: they have no normal.
-
-:func:`neighbour_lists` is the same grid for a sensor with a finite radius: every point's
-neighbours within the radius (inclusive, coincident ones too), ascending.
+The cost is O(R + candidates + pairs) a team instead of O(R^2). Below
+:data:`GRID_MIN_POINTS` points (:data:`SENSOR_GRID_MIN_POINTS` for the sensor, whose
+all-pairs loop is vectorised) testing every pair is faster and is used; both return
+identical lists (tested on random layouts, cell boundaries, crowds, impacts and columns
+against walls), so a team's results do not depend on which one ran. Coincident points
+(squared distance below 1e-24) are listed only when asked (``inclusive``): a contact has
+no normal for them.
 """
 
 from __future__ import annotations
@@ -31,11 +34,19 @@ import numpy as np
 
 from physrover.core.compiled import jit
 
-GRID_MIN_POINTS = 4096
-"""Teams of at least this many rovers take the grid; smaller ones test every pair.
-Provisional: measured at 100 rovers (2026-12-02, EPYC Zen 4) the grid made the physical
-world 1.6x and a radius-5 sensor 4.7x slower than testing every pair, so it is off at
-every team size measured until the crossover is measured (issue 32)."""
+GRID_MIN_POINTS = 80
+"""Teams of at least this many rovers find their contact pairs, and their spawn's
+overlaps, from the grid; smaller ones test every pair. Measured (2026-12-03, EPYC Zen 4,
+one thread, teams spread as ``physrover bench world --rovers`` spreads them, reach 0.9):
+listing the pairs costs the same both ways at 75 rovers, the grid 1.5x less at 100, 5x
+at 300, 17x at 1000 (``experiments/scaling_vs_vmas.py`` has the whole world's scaling)."""
+
+SENSOR_GRID_MIN_POINTS = 400
+"""Teams of at least this many rovers find the neighbours of a sensor with a finite radius
+from the grid. The all-pairs sensor is vectorised over 16 observing rovers at a time and
+stays faster far longer: with a radius of 5 in the same spread, 92 against 105 us a team
+at 300 rovers, 5x slower than the grid at 1000. A denser team (more neighbours within the
+radius) moves the crossover up."""
 
 _CELL_MARGIN = 1.0 + 1e-9
 """A cell is this much wider than the reach: two points closer than the reach then always
@@ -60,93 +71,115 @@ def near_pairs_all(points, reach_sq, near):
 
 
 @jit
-def _grid(points, cell):
-    """The grid of (R, 2) ``points`` with square cells of side ``cell``: each point's key,
-    the points in key order, the sorted keys, and the key's row width."""
+def grid(points, reach):
+    """The cell list of (R, 2) ``points`` for a ``reach`` > 0: square cells of side at
+    least ``reach`` over the points' bounding box, at most ``4 R + 16`` of them (a sparse
+    spread doubles the side until it fits: more candidates, the same neighbours).
+
+    Returns ``(cells, starts, members, ordered)``: point i's cell column and row
+    ``cells[i]`` (cx, cy = floor((p - p_min) / side)); the points of cell c = cx ny + cy
+    (``cells[n]`` holds the grid's columns and rows, nx and ny)
+    ``members[starts[c]:starts[c + 1]]``, ascending (a counting sort: no comparison sort,
+    no search); and their coordinates in the same order, ``ordered = points[members]``
+    (the neighbour scans then read memory in sequence)."""
     n = points.shape[0]
-    cx = np.empty(n, np.int64)
-    cy = np.empty(n, np.int64)
+    x0 = x1 = points[0, 0]
+    y0 = y1 = points[0, 1]
+    for i in range(1, n):
+        x0, x1 = min(x0, points[i, 0]), max(x1, points[i, 0])
+        y0, y1 = min(y0, points[i, 1]), max(y1, points[i, 1])
+    side = reach * _CELL_MARGIN
+    while (math.floor((x1 - x0) / side) + 1) * (math.floor((y1 - y0) / side) + 1) > 4 * n + 16:
+        side *= 2.0
+    nx = np.int64(math.floor((x1 - x0) / side)) + 1
+    ny = np.int64(math.floor((y1 - y0) / side)) + 1
+    cells = np.empty((n + 1, 2), np.int64)
+    cells[n, 0], cells[n, 1] = nx, ny
+    starts = np.zeros(nx * ny + 1, np.int64)
     for i in range(n):
-        cx[i] = np.int64(math.floor(points[i, 0] / cell))
-        cy[i] = np.int64(math.floor(points[i, 1] / cell))
-    x0, y0 = cx.min(), cy.min()
-    width = cy.max() - y0 + 3
-    keys = (cx - x0 + 1) * width + (cy - y0 + 1)
-    order = np.argsort(keys, kind="mergesort")
-    return keys, order, keys[order], width
+        cells[i, 0] = min(np.int64(math.floor((points[i, 0] - x0) / side)), nx - 1)
+        cells[i, 1] = min(np.int64(math.floor((points[i, 1] - y0) / side)), ny - 1)
+        starts[cells[i, 0] * ny + cells[i, 1] + 1] += 1
+    for c in range(nx * ny):
+        starts[c + 1] += starts[c]
+    members = np.empty(n, np.int64)
+    ordered = np.empty((n, 2))
+    fill = starts[:-1].copy()
+    for i in range(n):
+        c = cells[i, 0] * ny + cells[i, 1]
+        members[fill[c]] = i
+        ordered[fill[c], 0], ordered[fill[c], 1] = points[i, 0], points[i, 1]
+        fill[c] += 1
+    return cells, starts, members, ordered
 
 
 @jit
-def _neighbours(points, i, reach_sq, inclusive, above, keys, order, sorted_keys, width, found):
-    """The points j (j > i if ``above``, else every j != i) within reach of point i, from
-    the 3 x 3 cells around its own, written to ``found`` unsorted; returns how many. Within
-    reach: squared distance < ``reach_sq`` and >= 1e-24, or <= ``reach_sq`` if
-    ``inclusive`` (then coincident points count too)."""
+def near_pairs_grid(points, reach_sq, near, inclusive=False):
+    """:func:`near_pairs_all` from the cell list (:func:`grid`): the same pairs in the same
+    order; with ``inclusive`` the pairs with squared distance <= ``reach_sq``, coincident
+    ones too (a sensor's neighbours). ``near`` grows (a new array is returned) when the
+    pairs outnumber its rows; returns (count, near).
+
+    Each pair is tested once (a half stencil): a point in cell (cx, cy) is tested against
+    the points after it in its own cell and in (cx, cy + 1), one run of the cell order,
+    and against the column (cx + 1, cy - 1 .. cy + 1), another. The pairs found, (lower
+    index, higher), are then put in index order: counted by their lower index (a counting
+    sort), each point's higher indices sorted by insertion."""
+    n = points.shape[0]
+    if n < 2:
+        return 0, near
+    cells, starts, members, ordered = grid(points, math.sqrt(reach_sq))
+    nx, ny = cells[n, 0], cells[n, 1]
+    found = np.empty((max(near.shape[0], 2 * n), 2), np.int64)  # unordered, then ordered
+    first_of = np.zeros(n + 1, np.int64)  # pairs per lower index, then where they start
     n_found = 0
-    for column in range(-1, 2):
-        centre = keys[i] + column * width
-        lo = np.searchsorted(sorted_keys, centre - 1, side="left")
-        hi = np.searchsorted(sorted_keys, centre + 1, side="right")
-        for slot in range(lo, hi):
-            j = order[slot]
-            if j == i or (above and j < i):
-                continue
-            dx = points[j, 0] - points[i, 0]
-            dy = points[j, 1] - points[i, 1]
-            d_sq = dx * dx + dy * dy
-            if (d_sq <= reach_sq) if inclusive else (reach_sq > d_sq >= 1e-24):
-                found[n_found] = j
-                n_found += 1
-    return n_found
-
-
-@jit
-def near_pairs_grid(points, reach_sq, near):
-    """:func:`near_pairs_all` from a uniform grid (the module docstring): the same pairs in
-    the same order. ``near`` grows (a new array is returned) when the pairs outnumber its
-    rows; returns (count, near)."""
-    n = points.shape[0]
-    keys, order, sorted_keys, width = _grid(points, math.sqrt(reach_sq) * _CELL_MARGIN)
-    found = np.empty(n, np.int64)
-    n_near = 0
+    for slot in range(n):
+        a = members[slot]
+        xa, ya = ordered[slot, 0], ordered[slot, 1]
+        cx, cy = cells[a, 0], cells[a, 1]
+        own_end = starts[cx * ny + min(cy + 1, ny - 1) + 1]
+        if cx + 1 < nx:
+            column = (cx + 1) * ny
+            runs = ((slot + 1, own_end), (starts[column + max(cy - 1, 0)],
+                                          starts[column + min(cy + 1, ny - 1) + 1]))  # fmt: skip
+        else:
+            runs = ((slot + 1, own_end), (0, 0))
+        room = (runs[0][1] - runs[0][0]) + (runs[1][1] - runs[1][0])
+        if n_found + room > found.shape[0]:
+            grown = np.empty((2 * (n_found + room), 2), np.int64)
+            grown[:n_found] = found[:n_found]
+            found = grown
+        for run in runs:
+            for other in range(run[0], run[1]):
+                # branch-free: written, kept only if within reach (random layouts defeat
+                # branch prediction)
+                b = members[other]
+                dx = ordered[other, 0] - xa
+                dy = ordered[other, 1] - ya
+                d_sq = dx * dx + dy * dy
+                within = (d_sq <= reach_sq) if inclusive else (d_sq < reach_sq) & (d_sq >= 1e-24)
+                low = min(a, b)
+                found[n_found, 0], found[n_found, 1] = low, a + b - low
+                n_found += within
+    for k in range(n_found):
+        first_of[found[k, 0] + 1] += 1
     for i in range(n):
-        n_found = _neighbours(points, i, reach_sq, False, True, keys, order, sorted_keys,
-                              width, found)  # fmt: skip
-        if n_near + n_found > near.shape[0]:
-            grown = np.empty((2 * (n_near + n_found), 2), np.int64)
-            grown[:n_near] = near[:n_near]
-            near = grown
-        found[:n_found].sort()
-        for k in range(n_found):
-            near[n_near, 0], near[n_near, 1] = i, found[k]
-            n_near += 1
-    return n_near, near
-
-
-@jit
-def neighbour_lists(points, radius_sq):
-    """For each of (R, 2) ``points``, the others within ``sqrt(radius_sq)`` (squared
-    distance <= ``radius_sq``, coincident points included), ascending, from the grid:
-    ``(starts, items)``, point i's list ``items[starts[i]:starts[i + 1]]``."""
-    n = points.shape[0]
-    keys, order, sorted_keys, width = _grid(points, math.sqrt(radius_sq) * _CELL_MARGIN)
-    found = np.empty(n, np.int64)
-    starts = np.empty(n + 1, np.int64)
-    items = np.empty(8 * n, np.int64)
-    count = 0
-    for i in range(n):
-        starts[i] = count
-        n_found = _neighbours(points, i, radius_sq, True, False, keys, order, sorted_keys,
-                              width, found)  # fmt: skip
-        if count + n_found > items.shape[0]:
-            grown = np.empty(2 * (count + n_found), np.int64)
-            grown[:count] = items[:count]
-            items = grown
-        found[:n_found].sort()
-        items[count : count + n_found] = found[:n_found]
-        count += n_found
-    starts[n] = count
-    return starts, items
+        first_of[i + 1] += first_of[i]
+    if n_found > near.shape[0]:
+        near = np.empty((2 * n_found, 2), np.int64)
+    fill = first_of[:n].copy()
+    for k in range(n_found):
+        i = found[k, 0]
+        near[fill[i], 0], near[fill[i], 1] = i, found[k, 1]
+        fill[i] += 1
+    for i in range(n):  # each point's higher indices, ascending (insertion: a few each)
+        for k in range(first_of[i] + 1, first_of[i + 1]):
+            j, row = near[k, 1], k
+            while row > first_of[i] and near[row - 1, 1] > j:
+                near[row, 1] = near[row - 1, 1]
+                row -= 1
+            near[row, 1] = j
+    return n_found, near
 
 
 @jit

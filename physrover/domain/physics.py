@@ -59,8 +59,9 @@ it removes the closing speed that would carry a pair into overlap within the ste
 between two rovers as momentum conservation shares it, all from a static obstacle's side:
 frictionless, inelastic contacts, resolved *before* the impact rather than after it (a
 speculative contact in a sequential-impulse solver, sweeping rover pairs then rovers
-against obstacles until nothing changes, at most ``CONTACT_SWEEPS`` = 20 sweeps). Chipmunk,
-which detects contacts between discrete positions, lets rovers closing at more than a
+against obstacles until nothing changes, at most 20 sweeps up to 15 rovers and more in
+larger teams, ``contact_sweeps``; the pairs from a grid in large teams). Chipmunk, which
+detects contacts between discrete positions, lets rovers closing at more than a
 diameter per physics step pass through each other; the pass holds at any number of
 substeps (``experiments/contacts.py``: no pass-through head-on at any impact phase, worst
 overlap at a step end ~1% of a diameter in crowds, 0.0% in steady pushing, 0.6% for a
@@ -97,13 +98,8 @@ from physrover.config.domain import extent_of
 from physrover.domain.dynamics import Dynamics, register_dynamics
 from physrover.domain.kernels import heading_trig
 from physrover.domain.obstacles import box_corners
-from physrover.domain.physics_kernels import (
-    advance_compiled,
-    separate_teams,
-    setpoints,
-    substep,
-    wrap_angles,
-)
+from physrover.domain.physics_kernels import advance_compiled, setpoints, substep, wrap_angles
+from physrover.domain.separation import separate
 
 _ROVER = 0b01
 _WALL = 0b10
@@ -111,26 +107,6 @@ _STATE = pb.BodyFields.POSITION | pb.BodyFields.ANGLE  # 3 floats per body: x, y
 _MOTION = pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY  # vx, vy, w
 _ALL = _STATE | _MOTION  # x, y, angle, vx, vy, w
 _FORCES = pb.BodyFields.FORCE | pb.BodyFields.TORQUE  # fx, fy, torque
-
-
-def separate(
-    positions: np.ndarray, min_distance, tolerance: float, max_iterations: int = 500
-) -> np.ndarray:
-    """Push overlapping points of each team apart until no pair is closer than
-    ``min_distance - tolerance`` (a scalar, or (R, R) per pair).
-
-    Each iteration moves both points of every overlapping pair apart by half the overlap
-    plus ``tolerance`` along the line joining them (coincident points along a direction
-    fixed by their indices), all pairs from the positions at the iteration's start; a team
-    stops when none of its pairs overlaps by more than ``tolerance``
-    (:func:`~physrover.domain.physics_kernels.separate_teams`). Deterministic; (E, R, 2)
-    in, (E, R, 2) out.
-    """
-    n_rovers = positions.shape[1]
-    contact = np.broadcast_to(np.asarray(min_distance, dtype=np.float64), (n_rovers, n_rovers))
-    x, y = positions[..., 0].astype(np.float64), positions[..., 1].astype(np.float64)
-    separate_teams(x, y, np.ascontiguousarray(contact), float(tolerance), max_iterations)
-    return np.stack([x, y], axis=-1)
 
 
 def pair_overlaps(positions: np.ndarray, radius: float) -> np.ndarray:

@@ -20,10 +20,24 @@ from physrover.domain.broadphase import GRID_MIN_POINTS, near_pairs
 from physrover.domain.kernels import _move
 
 CONTACT_SWEEPS = 20
-"""Most sweeps of the contact pass per physics step (it stops at the first sweep that
-changes nothing). A column of 10 rovers driven into a box at 1 substep ends steps 16%
-overlapped with 10 sweeps, 5.7% with 20, 1.3% with 40; at the default 4 substeps 0.5-1%
-from 10 on (``experiments/contacts.py``)."""
+"""Most sweeps of the contact pass per physics step in a team of up to 15 rovers (it stops
+at the first sweep that changes nothing); larger teams get more (:func:`contact_sweeps`).
+A column of 10 rovers driven into a box at 1 substep ends steps 16% overlapped with 10
+sweeps, 5.7% with 20, 1.3% with 40; at the default 4 substeps 0.5-1% from 10 on
+(``experiments/contacts.py``)."""
+
+
+@jit
+def contact_sweeps(n_rovers):
+    """Most sweeps of the contact pass for a team of ``n_rovers``: :data:`CONTACT_SWEEPS`
+    up to 15 rovers, growing with the team's width, ``ceil(20 sqrt(R / 15))`` (a push
+    travels about a pair a sweep, and a jam is as deep as the team is wide): 52 at 100
+    rovers, 164 at 1000. With 20 at 1000 rovers a team driven into its centre ended steps
+    up to 8.9% overlapped (median 1.5% of the pairs in contact), with 200 0.7% (0.5%), as
+    at 15 rovers (``experiments/contacts.py``, "converge"). A converged pass stops early,
+    and revisits only the pairs whose velocities changed, so the cap costs only where a
+    jam needs it."""
+    return np.int64(math.ceil(CONTACT_SWEEPS * math.sqrt(max(n_rovers, 15) / 15.0)))
 
 
 @jit
@@ -146,6 +160,14 @@ def speculative_contacts(positions, velocities, contact, mass, radius, capsules,
     if contact is not None:
         for i in range(n_rovers):
             widest = max(widest, contact[i, i])
+    # Positions do not move during the pass: each pair's normal and speed limit are worked
+    # out once. A pair is visited again only if one of its rovers' velocities changed since
+    # its last visit (visit and change times on one clock): a skipped visit would have
+    # computed the same approach speed and changed nothing, so the pass is the same, bit
+    # for bit, as visiting every pair every sweep.
+    changed_at = np.empty(n_rovers, np.int64)
+    geometry = np.empty((near.shape[0], 3))  # each pair's nx, ny, limit
+    visited_at = np.empty(near.shape[0], np.int64)
     for e in range(n_teams):
         n_near = 0  # the only pairs the sweeps visit
         if contact is not None:
@@ -156,19 +178,33 @@ def speculative_contacts(positions, velocities, contact, mass, radius, capsules,
                 v_max_sq = max(v_max_sq, v_sq)
             reach = widest + 2.0 * math.sqrt(v_max_sq) * dt
             n_near, near = near_pairs(positions[e], reach * reach, near)
+        if near.shape[0] > geometry.shape[0]:  # the grid grew the list
+            geometry = np.empty((near.shape[0], 3))
+            visited_at = np.empty(near.shape[0], np.int64)
+        visited_at[:n_near] = -1
+        if contact is not None:
+            for k in range(n_near):
+                i, j = near[k, 0], near[k, 1]
+                dx = positions[e, j, 0] - positions[e, i, 0]
+                dy = positions[e, j, 1] - positions[e, i, 1]
+                d = math.sqrt(dx * dx + dy * dy)
+                geometry[k, 0], geometry[k, 1] = dx / d, dy / d
+                geometry[k, 2] = (d - contact[i, j] + allowance) / dt
+        changed_at[:] = -1
+        clock = 0
         for _ in range(iterations):
             changed = False
             if contact is not None:  # compiled out without collisions
                 for k in range(n_near):
                     i, j = near[k, 0], near[k, 1]
-                    dx = positions[e, j, 0] - positions[e, i, 0]
-                    dy = positions[e, j, 1] - positions[e, i, 1]
-                    d = math.sqrt(dx * dx + dy * dy)
-                    nx, ny = dx / d, dy / d
+                    if max(changed_at[i], changed_at[j]) < visited_at[k]:
+                        continue  # neither velocity changed since this pair's last visit
+                    clock += 1
+                    visited_at[k] = clock
+                    nx, ny, limit = geometry[k, 0], geometry[k, 1], geometry[k, 2]
                     u = (velocities[e, i, 0] - velocities[e, j, 0]) * nx + (
                         velocities[e, i, 1] - velocities[e, j, 1]
                     ) * ny
-                    limit = (d - contact[i, j] + allowance) / dt
                     if u > limit:
                         excess = u - limit
                         share_i = excess * (mass[j] / (mass[i] + mass[j]))
@@ -177,11 +213,14 @@ def speculative_contacts(positions, velocities, contact, mass, radius, capsules,
                         velocities[e, i, 1] -= share_i * ny
                         velocities[e, j, 0] += share_j * nx
                         velocities[e, j, 1] += share_j * ny
+                        changed_at[i] = changed_at[j] = clock
                         changed = True
             if capsules is not None:
                 for i in range(n_rovers):
                     if _capsule_contact(positions, velocities, e, i, radius[i], capsules, dt,
                                         allowance):  # fmt: skip
+                        clock += 1
+                        changed_at[i] = clock
                         changed = True
             if not changed:
                 break
@@ -219,9 +258,9 @@ def _capsule_contact(positions, velocities, e, i, radius, capsules, dt, allowanc
 def substep(state, target_v, target_heading, first, dt, limits, contact, capsules, allowance,
             out):  # fmt: skip
     """Everything before one ``Space.step``, in one call: :func:`control`, then the
-    contacts (:func:`speculative_contacts`, up to ``CONTACT_SWEEPS`` sweeps): between rovers unless
-    ``contact`` is None (collisions off), against static capsules unless ``capsules`` is
-    None. Both None arguments compile their branch out.
+    contacts (:func:`speculative_contacts`, up to :func:`contact_sweeps` sweeps): between
+    rovers unless ``contact`` is None (collisions off), against static capsules unless
+    ``capsules`` is None. Both None arguments compile their branch out.
 
     Args:
         state: (E, R, 6) x, y, angle, vx, vy, w of the bodies now.
@@ -240,7 +279,7 @@ def substep(state, target_v, target_heading, first, dt, limits, contact, capsule
             moment, out)  # fmt: skip
     if contact is not None or capsules is not None:
         speculative_contacts(state[..., 0:2], out[..., 0:2], contact, mass, radius, capsules,
-                             dt, allowance, CONTACT_SWEEPS)  # fmt: skip
+                             dt, allowance, contact_sweeps(state.shape[1]))  # fmt: skip
 
 
 @jit
@@ -281,41 +320,3 @@ def advance_compiled(state, target_v, target_heading, substeps, dt, limits, cont
         substep(state, target_v, target_heading, k == 0, dt, limits, contact, capsules,
                 allowance, out)  # fmt: skip
         integrate(state, out, dt, inv_mass, inv_moment)
-
-
-@jit
-def separate_teams(x, y, min_distance, tolerance, max_iterations):
-    """:func:`physrover.domain.physics.separate` in place on (E, R) coordinates ``x``,
-    ``y``, team by team; ``min_distance`` (R, R). Each pair's push is summed per point in
-    index order; a coincident pair (i, j) is pushed along the angle ``2.399963 (i + j)``,
-    ``sign(i - j)`` times ``min_distance``."""
-    n_teams, n_rovers = x.shape
-    push_x, push_y = np.empty(n_rovers), np.empty(n_rovers)
-    for e in range(n_teams):
-        for _ in range(max_iterations):
-            crowded = False
-            for i in range(n_rovers):
-                sx = sy = 0.0
-                for j in range(n_rovers):
-                    if j == i:
-                        continue
-                    dx, dy = x[e, i] - x[e, j], y[e, i] - y[e, j]  # from j to i
-                    dist = math.sqrt(dx * dx + dy * dy)
-                    overlap = max(min_distance[i, j] - dist, 0.0)
-                    crowded = crowded or overlap > tolerance
-                    if overlap <= 0.0:
-                        continue
-                    if dist > 1e-12:
-                        scale = (0.5 * overlap + tolerance) / dist
-                        sx += dx * scale
-                        sy += dy * scale
-                    else:
-                        side = (i > j) - (i < j)
-                        sx += side * math.cos(2.399963 * (i + j)) * min_distance[i, j]
-                        sy += side * math.sin(2.399963 * (i + j)) * min_distance[i, j]
-                push_x[i], push_y[i] = sx, sy
-            if not crowded:
-                break
-            for i in range(n_rovers):
-                x[e, i] += push_x[i]
-                y[e, i] += push_y[i]

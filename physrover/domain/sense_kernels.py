@@ -6,9 +6,11 @@ Each channel adds its terms object by object, rovers by index then POIs, in floa
 an object a rover does not see adds nothing. The paper's sensor sees every object: it is
 all-pairs by definition, vectorised over the observing rovers (:func:`_sense_quadrants`,
 R^2 distance terms a team). A sensor with a finite radius in a team of at least
-:data:`physrover.domain.broadphase.GRID_MIN_POINTS` rovers finds each rover's neighbours
-from a uniform grid instead (:func:`_sense_local`), adding the same terms in the same
-order, so its observations are bit for bit those of the all-pairs loop.
+:data:`physrover.domain.broadphase.SENSOR_GRID_MIN_POINTS` rovers finds the pairs of
+rovers within the radius from a uniform grid instead (:func:`_sense_local`), adding the
+same terms in the same order, so its observations are bit for bit those of the all-pairs
+loop. The paper's unbounded sensor costs R^2 distance terms a team whatever is done
+(about 0.9 ms a step for 1000 rovers on one core): give large teams a radius.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import math
 import numpy as np
 
 from physrover.core.compiled import jit
-from physrover.domain.broadphase import GRID_MIN_POINTS, neighbour_lists
+from physrover.domain.broadphase import SENSOR_GRID_MIN_POINTS, near_pairs_grid
 
 
 @jit
@@ -169,7 +171,7 @@ def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
     Four sectors take the vectorised :func:`_sense_quadrants`; others the loop below.
     """
     n_sectors = len(sectors)
-    if radius_sq is not None and state.cos_h.shape[1] >= GRID_MIN_POINTS:
+    if radius_sq is not None and state.cos_h.shape[1] >= SENSOR_GRID_MIN_POINTS:
         _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs, scratch)
         return
     if n_sectors == 4:
@@ -199,24 +201,28 @@ def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
 
 @jit
 def _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs, scratch):
-    """:func:`sense_team` with a finite radius from the grid: each rover adds the terms of
-    its neighbours within the radius (:func:`physrover.domain.broadphase.neighbour_lists`,
-    ascending) and then of the POIs within it, the same terms in the same order as the
-    all-pairs loops, whose unseen objects add +0.0."""
+    """:func:`sense_team` with a finite radius from the cell list: the pairs (i, j), i < j,
+    within the radius (:func:`physrover.domain.broadphase.near_pairs_grid`, in index order)
+    each add their term to both rovers, i's view of j and j's of i (the offset negated:
+    exact in floating point); then each rover adds the POIs within the radius. Each rover
+    so receives its neighbours' terms in ascending index order, as in the all-pairs loops
+    (whose unseen objects add +0.0): the same sums, bit for bit."""
     positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
-    starts, items = neighbour_lists(positions[e], radius_sq)
-    acc = scratch[4]
-    for i in range(cos_h.shape[1]):
-        c, s = cos_h[e, i], sin_h[e, i]
-        xi, yi = positions[e, i, 0], positions[e, i, 1]
-        acc[: 2 * n_sectors] = 0.0
-        for slot in range(starts[i], starts[i + 1]):
-            j = items[slot]
-            dx = positions[e, j, 0] - xi
-            dy = positions[e, j, 1] - yi
-            dist_sq = max(dx * dx + dy * dy, d_min_sq)  # Eq. 14
-            acc[sector(c * dx + s * dy, c * dy - s * dx, n_sectors)] += 1.0 / dist_sq
-        _add_pois(e, i, state, c, s, d_min_sq, n_sectors, radius_sq, acc, obs)
+    n_rovers = cos_h.shape[1]
+    n_near, near = near_pairs_grid(positions[e], radius_sq, np.empty((8 * n_rovers, 2), np.int64),
+                                   True)  # fmt: skip
+    acc = np.zeros((n_rovers, 2 * n_sectors))  # by rover and sector, as sense_team's acc
+    for k in range(n_near):
+        i, j = near[k, 0], near[k, 1]
+        dx = positions[e, j, 0] - positions[e, i, 0]
+        dy = positions[e, j, 1] - positions[e, i, 1]
+        term = 1.0 / max(dx * dx + dy * dy, d_min_sq)  # Eq. 14
+        ci, si, cj, sj = cos_h[e, i], sin_h[e, i], cos_h[e, j], sin_h[e, j]
+        acc[i, sector(ci * dx + si * dy, ci * dy - si * dx, n_sectors)] += term
+        acc[j, sector(cj * -dx + sj * -dy, cj * -dy - sj * -dx, n_sectors)] += term
+    for i in range(n_rovers):
+        _add_pois(e, i, state, cos_h[e, i], sin_h[e, i], d_min_sq, n_sectors, radius_sq, acc[i],
+                  obs)  # fmt: skip
 
 
 @jit
