@@ -356,3 +356,18 @@ def test_bench_world_scaling_spreads_large_teams_and_rejects_bad_sizes(capsys):
     with pytest.raises(SystemExit):
         main(["bench", "world", "--rovers", "15,0"])
     assert "positive integers" in capsys.readouterr().err
+
+
+def test_bench_train_checks_set_fields_against_the_methods_it_times(capsys):
+    """A trajectory critic's fields are accepted when it is the method timed (they were
+    once checked against the default max critic and refused)."""
+    from physrover.cli import main
+
+    args = ["bench", "train", "--methods", "recurrent-max-critic", "--repeats", "1",
+            "--set", "n_rovers=3", "--set", "n_req=1", "--set", "population=6",
+            "--set", "steps=5", "--set", "trajectory_hidden=4"]  # fmt: skip
+    assert main(args) == 0
+    assert "recurrent-max-critic" in capsys.readouterr().out
+    refused = ["bench", "train", "--methods", "max-critic", "--set", "trajectory_hidden=4"]
+    assert main(refused) == 2
+    assert "trajectory_hidden" in capsys.readouterr().err

@@ -161,6 +161,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from physrover.experiment import bench
 
     pin_threads(args.threads)
+    if args.what == "train" and args.methods:  # --set is checked against the first method
+        args.method = args.methods.split(",")[0]  # (a trajectory critic's fields, say)
     config = _run_config(args)
     if args.what == "world" and args.rovers:
         d = config.domain
