@@ -2,13 +2,16 @@
 
     pip install vmas
     python experiments/scaling_vs_vmas.py [--rovers 15,100,400,1000] [--repeats 5]
+                                          [--vmas-steps 50] [--no-vmas]
 
 For each team size R, about 1500 agents in all (max(1, 1500 // R) teams): M agent-steps per
 second of reset + 50 steps with random actions, median of ``repeats`` episodes after a
 warm-up one, one thread, for physrover under idealised motion (the paper's sensor, and a
 sensor of radius 5), under physics with collisions (the paper's sensor, and radius 5), and
 for VMAS ``discovery`` (R agents, 4 targets, 3 agents per target, its world widened with R
-so its spawn fits: semidim sqrt(R / 15)) through its own vectorised env on the CPU.
+so its spawn fits: semidim sqrt(R / 15)) through its own vectorised env on the CPU
+(``--vmas-steps K``: episodes of K steps; VMAS takes 9 s a step at 400 agents and a minute
+at 1000, so use 1-3 there).
 physrover's large teams start spread as ``physrover bench world --rovers`` spreads them
 (:func:`physrover.experiment.bench.scaling_config`). Prints a Markdown table.
 """
@@ -59,6 +62,7 @@ def main() -> None:
     parser.add_argument("--rovers", default="15,100,400,1000")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--no-vmas", action="store_true", help="physrover's columns only")
+    parser.add_argument("--vmas-steps", type=int, default=50, help="steps of a VMAS episode")
     args = parser.parse_args()
     pin_threads(1)
     rovers = [int(r) for r in args.rovers.split(",")]
@@ -70,7 +74,8 @@ def main() -> None:
     for i, n in enumerate(rovers):
         cells = [f"{table[name][i][2]:.2f}" for name in COLUMNS]
         if not args.no_vmas:
-            cells.append(f"{vmas_rate(n, max(1, args.repeats // 2)):.3f}")
+            rate = vmas_rate(n, max(1, args.repeats // 2), steps=args.vmas_steps)
+            cells.append(f"{rate:.2g}")
         teams = table[next(iter(COLUMNS))][i][1]
         print(f"| {n} ({teams}) | " + " | ".join(cells) + " |")
 
