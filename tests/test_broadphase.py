@@ -10,8 +10,8 @@ import pytest
 
 from physrover import DomainConfig, RoverVectorEnv
 from physrover.domain.broadphase import GRID_MIN_POINTS, near_pairs_all, near_pairs_grid
+from physrover.domain.contacts import speculative_contacts
 from physrover.domain.physics import pair_overlaps
-from physrover.domain.physics_kernels import speculative_contacts
 from physrover.domain.separation import separate_teams
 
 PHYSICS = DomainConfig(motion="physics").replace(collisions=True)
@@ -134,11 +134,16 @@ def test_contacts_hold_in_a_crowd_of_two_hundred():
     assert worst <= 0.05  # of a diameter, as at 15 rovers
 
 
-def _contacts_every_pair_every_sweep(positions, velocities, contact, mass, dt, allowance, sweeps):
-    """The rover-rover contact pass as it reads (the docstring of
-    :func:`speculative_contacts`), a plain loop: every pair of every team tested in every
-    sweep, in index order, until a sweep changes nothing."""
-    positions, velocities = positions.tolist(), velocities.copy()
+def _contacts_every_pair_every_sweep(positions, velocities, contact, mass, dt, allowance, sweeps,
+                                     radius=None, capsules=None):  # fmt: skip
+    """The contact pass as it reads (the docstring of :func:`speculative_contacts`), a
+    plain loop: every pair of every team tested in every sweep, in index order, then every
+    rover against the capsules (the package's own ``_capsule_contact``), until a sweep
+    changes nothing."""
+    from physrover.domain.contacts import _capsule_contact
+
+    points, velocities = positions, velocities.copy()
+    positions = positions.tolist()
     for e, team in enumerate(positions):
         n = len(team)
         for _ in range(sweeps):
@@ -162,6 +167,9 @@ def _contacts_every_pair_every_sweep(positions, velocities, contact, mass, dt, a
                         v[j, 0] += share_j * nx
                         v[j, 1] += share_j * ny
                         changed = True
+            for i in range(n if capsules is not None else 0):
+                if _capsule_contact(points, velocities, e, i, radius[i], capsules, dt, allowance):
+                    changed = True
             if not changed:
                 break
     return velocities
@@ -186,6 +194,18 @@ def test_the_contact_pass_is_every_pair_every_sweep_bit_for_bit(n):
         speculative_contacts(positions, velocities, contact, mass, radius, None, 0.25, 0.01, 20)
         np.testing.assert_array_equal(velocities, expected)
         assert not np.array_equal(velocities, before)  # contacts did act
+        # Walls around them (capsules: segment ends, thickness) that push back along rows
+        # of rovers: a rover's capsule contact makes its pairs to be visited again.
+        half = spread * 0.8
+        corners = [(-half, -half), (half, -half), (half, half), (-half, half), (-half, -half)]
+        walls = np.array([[*corners[c], *corners[c + 1], 0.1] for c in range(4)])
+        capsules = np.ascontiguousarray(np.broadcast_to(walls, (2, 4, 5)))
+        velocities = before.copy()
+        expected = _contacts_every_pair_every_sweep(positions, velocities, contact, mass,
+                                                    0.25, 0.01, 20, radius, capsules)  # fmt: skip
+        speculative_contacts(positions, velocities, contact, mass, radius, capsules, 0.25, 0.01,
+                             20)  # fmt: skip
+        np.testing.assert_array_equal(velocities, expected)
 
 
 @pytest.mark.parametrize("n", [GRID_MIN_POINTS, 300])

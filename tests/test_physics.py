@@ -242,7 +242,7 @@ def test_the_state_holds_each_models_velocities(motion):
 
 
 def test_unequal_masses_share_a_speculative_contact_as_momentum_does():
-    from physrover.domain.physics_kernels import speculative_contacts
+    from physrover.domain.contacts import speculative_contacts
 
     positions = np.array([[[0.0, 0.0], [1.0, 0.0]]])
     velocities = np.array([[[2.0, 0.0], [-2.0, 0.0]]])

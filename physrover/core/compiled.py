@@ -83,6 +83,14 @@ def jit(fn):
     return _numba().njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
+def jit_inline(fn):
+    """As :func:`jit`, but inlined into each compiled caller (numba's ``inline="always"``):
+    for small helpers called once per object of a hot loop, where a call that passes
+    arrays costs more than the helper's work (their reference counts change at every
+    call)."""
+    return _numba().njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
+
+
 def jit_reassoc(fn):
     """As :func:`jit`, but the compiler may reassociate floating-point sums (``fastmath``
     flag ``reassoc`` only), which lets it vectorise reductions. Results stay deterministic

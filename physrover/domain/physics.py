@@ -53,7 +53,7 @@ With finite force a rover needs several steps to reach full speed, and its speed
 exceeds the command (the velocity moves along the segment towards ``v*``).
 
 Contacts are resolved by one compiled pass before every physics step
-(:func:`physrover.domain.physics_kernels.speculative_contacts`), between the rovers of a
+(:func:`physrover.domain.contacts.speculative_contacts`), between the rovers of a
 team (switched by ``collisions``) and between rovers and the static obstacles and walls:
 it removes the closing speed that would carry a pair into overlap within the step, shared
 between two rovers as momentum conservation shares it, all from a static obstacle's side:
