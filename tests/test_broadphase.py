@@ -66,6 +66,23 @@ def test_the_grid_lists_a_sensors_pairs_coincident_ones_too(seed):
         np.testing.assert_array_equal(grid[:count], np.array(expected, np.int64).reshape(-1, 2))
 
 
+def test_points_with_nan_or_infinite_coordinates_are_listed_with_nothing():
+    """As testing every pair does (their distances compare False), for both kinds of list;
+    the finite points keep their pairs."""
+    rng = np.random.default_rng(0)
+    points = rng.uniform(-2, 2, (40, 2))
+    points[3] = [np.nan, 0.0]
+    points[7] = [np.inf, 1.0]
+    points[8] = [-np.inf, np.nan]
+    every, grid = _both(points, 0.9)
+    np.testing.assert_array_equal(grid, every)
+    count, sensed = near_pairs_grid(points, 0.81, np.empty((1, 2), np.int64), True)
+    np.testing.assert_array_equal(sensed[:count], np.array(_inclusive_pairs(points, 0.81)))
+    assert not {3, 7, 8} & set(sensed[:count].ravel())
+    nothing = np.full((5, 2), np.nan)
+    assert near_pairs_grid(nothing, 1.0, np.empty((1, 2), np.int64))[0] == 0
+
+
 def test_points_on_cell_boundaries_and_at_exactly_the_reach():
     reach = 0.5
     line = np.stack([np.arange(50) * reach, np.zeros(50)], axis=-1)  # each pair exactly reach

@@ -74,7 +74,9 @@ def near_pairs_all(points, reach_sq, near):
 def grid(points, reach):
     """The cell list of (R, 2) ``points`` for a ``reach`` > 0: square cells of side at
     least ``reach`` over the points' bounding box, at most ``4 R + 16`` of them (a sparse
-    spread doubles the side until it fits: more candidates, the same neighbours).
+    spread doubles the side until it fits: more candidates, the same neighbours). A point
+    with a NaN or infinite coordinate is in no cell (cells[i] = -1): it has no finite
+    distance to anything, and testing every pair would list it with nothing either.
 
     Returns ``(cells, starts, members, ordered)``: point i's cell column and row
     ``cells[i]`` (cx, cy = floor((p - p_min) / side)); the points of cell c = cx ny + cy
@@ -83,29 +85,37 @@ def grid(points, reach):
     no search); and their coordinates in the same order, ``ordered = points[members]``
     (the neighbour scans then read memory in sequence)."""
     n = points.shape[0]
-    x0 = x1 = points[0, 0]
-    y0 = y1 = points[0, 1]
-    for i in range(1, n):
-        x0, x1 = min(x0, points[i, 0]), max(x1, points[i, 0])
-        y0, y1 = min(y0, points[i, 1]), max(y1, points[i, 1])
+    x0 = y0 = np.inf
+    x1 = y1 = -np.inf
+    n_finite = 0
+    for i in range(n):
+        if math.isfinite(points[i, 0]) and math.isfinite(points[i, 1]):
+            x0, x1 = min(x0, points[i, 0]), max(x1, points[i, 0])
+            y0, y1 = min(y0, points[i, 1]), max(y1, points[i, 1])
+            n_finite += 1
+    if n_finite == 0:
+        x0 = x1 = y0 = y1 = 0.0
     side = reach * _CELL_MARGIN
     while (math.floor((x1 - x0) / side) + 1) * (math.floor((y1 - y0) / side) + 1) > 4 * n + 16:
         side *= 2.0
     nx = np.int64(math.floor((x1 - x0) / side)) + 1
     ny = np.int64(math.floor((y1 - y0) / side)) + 1
-    cells = np.empty((n + 1, 2), np.int64)
+    cells = np.full((n + 1, 2), -1, np.int64)  # a NaN or infinite point: in no cell
     cells[n, 0], cells[n, 1] = nx, ny
     starts = np.zeros(nx * ny + 1, np.int64)
     for i in range(n):
-        cells[i, 0] = min(np.int64(math.floor((points[i, 0] - x0) / side)), nx - 1)
-        cells[i, 1] = min(np.int64(math.floor((points[i, 1] - y0) / side)), ny - 1)
-        starts[cells[i, 0] * ny + cells[i, 1] + 1] += 1
+        if math.isfinite(points[i, 0]) and math.isfinite(points[i, 1]):
+            cells[i, 0] = min(np.int64(math.floor((points[i, 0] - x0) / side)), nx - 1)
+            cells[i, 1] = min(np.int64(math.floor((points[i, 1] - y0) / side)), ny - 1)
+            starts[cells[i, 0] * ny + cells[i, 1] + 1] += 1
     for c in range(nx * ny):
         starts[c + 1] += starts[c]
-    members = np.empty(n, np.int64)
-    ordered = np.empty((n, 2))
+    members = np.empty(n_finite, np.int64)
+    ordered = np.empty((n_finite, 2))
     fill = starts[:-1].copy()
     for i in range(n):
+        if cells[i, 0] < 0:
+            continue
         c = cells[i, 0] * ny + cells[i, 1]
         members[fill[c]] = i
         ordered[fill[c], 0], ordered[fill[c], 1] = points[i, 0], points[i, 1]
@@ -133,7 +143,7 @@ def near_pairs_grid(points, reach_sq, near, inclusive=False):
     found = np.empty((max(near.shape[0], 2 * n), 2), np.int64)  # unordered, then ordered
     first_of = np.zeros(n + 1, np.int64)  # pairs per lower index, then where they start
     n_found = 0
-    for slot in range(n):
+    for slot in range(members.shape[0]):
         a = members[slot]
         xa, ya = ordered[slot, 0], ordered[slot, 1]
         cx, cy = cells[a, 0], cells[a, 1]
