@@ -78,12 +78,12 @@ def grid(points, reach):
     with a NaN or infinite coordinate is in no cell (cells[i] = -1): it has no finite
     distance to anything, and testing every pair would list it with nothing either.
 
-    Returns ``(cells, starts, members, ordered)``: point i's cell column and row
-    ``cells[i]`` (cx, cy = floor((p - p_min) / side)); the points of cell c = cx ny + cy
-    (``cells[n]`` holds the grid's columns and rows, nx and ny)
-    ``members[starts[c]:starts[c + 1]]``, ascending (a counting sort: no comparison sort,
-    no search); and their coordinates in the same order, ``ordered = points[members]``
-    (the neighbour scans then read memory in sequence)."""
+    Returns ``(cells, nx, ny, starts, members, ordered)``: point i's cell column and row
+    ``cells[i]`` (cx, cy = floor((p - p_min) / side)) in a grid of nx columns and ny rows;
+    the points of cell c = cx ny + cy, ``members[starts[c]:starts[c + 1]]``, ascending (a
+    counting sort: no comparison sort, no search); and their coordinates in the same
+    order, ``ordered = points[members]`` (the neighbour scans then read memory in
+    sequence)."""
     n = points.shape[0]
     x0 = y0 = np.inf
     x1 = y1 = -np.inf
@@ -100,8 +100,7 @@ def grid(points, reach):
         side *= 2.0
     nx = np.int64(math.floor((x1 - x0) / side)) + 1
     ny = np.int64(math.floor((y1 - y0) / side)) + 1
-    cells = np.full((n + 1, 2), -1, np.int64)  # a NaN or infinite point: in no cell
-    cells[n, 0], cells[n, 1] = nx, ny
+    cells = np.full((n, 2), -1, np.int64)  # a NaN or infinite point: in no cell
     starts = np.zeros(nx * ny + 1, np.int64)
     for i in range(n):
         if math.isfinite(points[i, 0]) and math.isfinite(points[i, 1]):
@@ -120,7 +119,7 @@ def grid(points, reach):
         members[fill[c]] = i
         ordered[fill[c], 0], ordered[fill[c], 1] = points[i, 0], points[i, 1]
         fill[c] += 1
-    return cells, starts, members, ordered
+    return cells, nx, ny, starts, members, ordered
 
 
 @jit
@@ -138,8 +137,7 @@ def near_pairs_grid(points, reach_sq, near, inclusive=False):
     n = points.shape[0]
     if n < 2:
         return 0, near
-    cells, starts, members, ordered = grid(points, math.sqrt(reach_sq))
-    nx, ny = cells[n, 0], cells[n, 1]
+    cells, nx, ny, starts, members, ordered = grid(points, math.sqrt(reach_sq))
     found = np.empty((max(near.shape[0], 2 * n), 2), np.int64)  # unordered, then ordered
     first_of = np.zeros(n + 1, np.int64)  # pairs per lower index, then where they start
     n_found = 0

@@ -328,7 +328,8 @@ class PhysicsMotion(Dynamics):
         collisions are on), facing ``headings``; returns the positions used."""
         cfg = self.config
         if cfg.physics.collisions:
-            positions = separate(positions, self.contact, self.slop)
+            # r_i + r_j: symmetric by construction (floating-point addition commutes)
+            positions = separate(positions, self.contact, self.slop, symmetric=True)
         start = np.zeros((self.n_teams, self.n_rovers, 6))
         start[..., :2] = positions + self.offsets
         start[..., 2] = headings

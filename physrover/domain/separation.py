@@ -18,10 +18,16 @@ from physrover.domain.broadphase import GRID_MIN_POINTS, near_pairs_grid
 
 
 def separate(
-    positions: np.ndarray, min_distance, tolerance: float, max_iterations: int = 500
+    positions: np.ndarray,
+    min_distance,
+    tolerance: float,
+    max_iterations: int = 500,
+    symmetric: bool | None = None,
 ) -> np.ndarray:
     """Push overlapping points of each team apart until no pair is closer than
-    ``min_distance - tolerance`` (a scalar, or (R, R) per pair).
+    ``min_distance - tolerance`` (a scalar, or (R, R) per pair; ``symmetric`` says
+    whether that matrix equals its transpose, which lets large teams take the grid; None:
+    checked here, an R^2 comparison at every call).
 
     Each iteration moves both points of every overlapping pair apart by half the overlap
     plus ``tolerance`` along the line joining them (coincident points along a direction
@@ -33,7 +39,8 @@ def separate(
     n_rovers = positions.shape[1]
     contact = np.broadcast_to(np.asarray(min_distance, dtype=np.float64), (n_rovers, n_rovers))
     x, y = positions[..., 0].astype(np.float64), positions[..., 1].astype(np.float64)
-    symmetric = bool(np.array_equal(contact, contact.T))
+    if symmetric is None:
+        symmetric = bool(np.array_equal(contact, contact.T))
     separate_teams(x, y, np.ascontiguousarray(contact), float(tolerance), max_iterations,
                    symmetric)  # fmt: skip
     return np.stack([x, y], axis=-1)
