@@ -428,3 +428,71 @@ def replay(world, commands):
         "observations": np.stack(observations[: cfg.steps]),
         **scores,
     }
+
+
+# -- the lab's CCEA options (issue 33), as plain loops ------------------------------------------
+
+
+def plackett_luce_probability(order, fitness, temperature=1.0) -> float:
+    """Probability that drawing without replacement with p proportional to exp(f / tau) among
+    those left yields ``order`` (the lab's ``form_softmax_teams`` for one population)."""
+    left = list(range(len(fitness)))
+    p = 1.0
+    for chosen in order:
+        weights = [math.exp(fitness[i] / temperature) for i in left]
+        p *= math.exp(fitness[chosen] / temperature) / sum(weights)
+        left.remove(chosen)
+    return p
+
+
+def lab_softmax_order(fitness, rng) -> list:
+    """One population's order as the lab draws it: team after team, ``choice`` among those
+    left with p = softmax(fitness of those left)."""
+    left = list(range(len(fitness)))
+    order = []
+    while left:
+        f = np.array([fitness[i] for i in left])
+        p = np.exp(f - f.max())
+        j = rng.choice(len(left), p=p / p.sum())
+        order.append(left.pop(j))
+    return order
+
+
+def evolve_elites_loops(pool, pool_fitness, k, n_elites, a, b, coin, hit, noise, scale):
+    """:func:`physrover.learn.evolution.evolve_elites` with the same draws given as arrays:
+    member indices ``a``, ``b`` (already distinct), ``coin`` (R, n_tour) uniforms, ``hit``
+    (R, n_tour, P) mutation mask and ``noise`` the draws for the hit weights in C order."""
+    n_pop, n = pool_fitness.shape
+    out = np.empty((n_pop, k, pool.shape[2]), dtype=pool.dtype)
+    carried = np.full((n_pop, k), np.nan)
+    used = 0
+    for r in range(n_pop):
+        fit = [(-math.inf if math.isnan(f) else f) for f in pool_fitness[r]]
+        ranked = sorted(range(n), key=lambda i: (-fit[i], i))
+        for e in range(n_elites):
+            out[r, e] = pool[r, ranked[e]]
+            carried[r, e] = pool_fitness[r, ranked[e]]
+        for t in range(k - n_elites):
+            i, j = a[r, t], b[r, t]
+            win = i if fit[i] > fit[j] or (fit[i] == fit[j] and coin[r, t] < 0.5) else j
+            child = pool[r, win].copy()
+            for p in range(child.shape[0]):
+                if hit[r, t, p]:
+                    child[p] += np.float32(scale * noise[used])
+                    used += 1
+            out[r, n_elites + t] = child
+    return out, carried
+
+
+def select_team_elites_loops(elite_genomes, elite_fitness, elite_G, population, team_index,
+                             team_G, fitness):  # fmt: skip
+    """The n best teams by G among [elites | training teams], ties to the earlier one."""
+    n = len(elite_G)
+    candidates = [(elite_G[j], j, elite_genomes[j], elite_fitness[j]) for j in range(n)]
+    for m in range(len(team_G)):
+        genomes = np.stack([population[r, team_index[m, r]] for r in range(population.shape[0])])
+        member = np.array([fitness[r, team_index[m, r]] for r in range(population.shape[0])])
+        candidates.append((team_G[m], n + m, genomes, member))
+    candidates.sort(key=lambda c: (-c[0], c[1]))
+    best = candidates[:n]
+    return np.stack([c[2] for c in best]), np.stack([c[3] for c in best])

@@ -42,7 +42,28 @@ class LearnConfig(ConfigBase):
     mutation_rate: float = 0.01
     """Probability that an offspring's weight is mutated."""
     mutation_scale: float = 1.0
-    """Scale of the Cauchy distribution added to a mutated weight."""
+    """Scale of the noise added to a mutated weight (the Cauchy's scale, the Gaussian's std)."""
+    mutation: str = "cauchy"
+    """The mutation noise: "cauchy" (the paper's) or "gauss" (the lab's later code, with
+    ``mutation_rate = 0.5`` and ``mutation_scale = 0.1``)."""
+    team_formation: str = "random"
+    """How each round's teams are formed: "random" (a fresh permutation of every population,
+    the paper's) or "softmax" (the lab's later code: teams drawn in turn, each member by a
+    softmax over its population's fitness at ``softmax_temperature`` among those not yet
+    drawn, so good policies tend to play together; :mod:`physrover.learn.teams`)."""
+    softmax_temperature: float = 1.0
+    """Temperature of softmax team formation (the lab's is 1, in fitness units)."""
+    selection: str = "tournament"
+    """"tournament" (binary tournament, losers replaced by mutated winners: the paper's) or
+    "elites" (the lab's n-elites tournament: ``n_individual_elites`` best policies kept
+    unmutated, the rest mutated winners of binary tournaments, with ``n_team_elites`` best
+    teams replayed; :mod:`physrover.learn.evolution`, :mod:`physrover.learn.team_elites`)."""
+    n_individual_elites: int = 10
+    """Under ``selection = "elites"``: policies per population copied unmutated (the best
+    by fitness, the champion first)."""
+    n_team_elites: int = 10
+    """Under ``selection = "elites"``: best teams by G kept whole and replayed each
+    generation; their members join the selection pool (0: none)."""
     n_samples: int = 10
     """Episodes per generation for the average and leniency methods."""
     eval_episodes: int = 10
@@ -181,6 +202,7 @@ class LearnConfig(ConfigBase):
             "mutation_scale",
             f"must be > 0, got {self.mutation_scale}",
         )
+        self._check_ccea_options()
         check(
             self.critic_lr >= 0 and math.isfinite(self.critic_lr),
             "critic_lr",
@@ -191,3 +213,36 @@ class LearnConfig(ConfigBase):
             "leaky_slope",
             f"must be in [0, 1), got {self.leaky_slope}",
         )
+
+    def _check_ccea_options(self) -> None:
+        """The CCEA's team formation, selection and mutation options."""
+        check_choice(self.mutation, ("cauchy", "gauss"), "mutation")
+        check_choice(self.team_formation, ("random", "softmax"), "team_formation")
+        check_choice(self.selection, ("tournament", "elites"), "selection")
+        check(
+            self.softmax_temperature > 0 and math.isfinite(self.softmax_temperature),
+            "softmax_temperature",
+            f"must be > 0, got {self.softmax_temperature}",
+        )
+        check(
+            self.softmax_temperature == 1.0 or self.team_formation == "softmax",
+            "softmax_temperature",
+            'configures team_formation = "softmax"',
+        )
+        spec = FITNESS_METHODS[self.method] if self.method in FITNESS_METHODS else None
+        check(
+            self.team_formation == "random" or not getattr(spec, "plans_teams", False),
+            "team_formation",
+            f"{self.method!r} plans its own teams; softmax needs a method with random teams",
+        )
+        if self.selection != "elites":
+            for name in ("n_individual_elites", "n_team_elites"):
+                check(getattr(self, name) == 10, name, 'configures selection = "elites"')
+            return
+        check(
+            1 <= self.n_individual_elites < self.population,
+            "n_individual_elites",
+            f"must be in [1, population) = [1, {self.population}) (the champion is elite 0), "
+            f"got {self.n_individual_elites}",
+        )
+        check(self.n_team_elites >= 0, "n_team_elites", f"must be >= 0, got {self.n_team_elites}")

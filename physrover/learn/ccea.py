@@ -6,11 +6,14 @@ One generation, everything batched over teams and rovers (R rovers, k policies e
    population forms k teams, so each policy plays exactly once per round (the hall of fame
    instead pairs each policy with the best team found so far). The champion
    team (every population's best policy by the latest fitness) is added ``eval_episodes``
-   times; all teams run as one batch of episodes on the vector env.
+   times; all teams run as one batch of episodes on the vector env. Options from the lab's
+   later code (``[learn]``): softmax team formation (:mod:`physrover.learn.teams`) and
+   elite teams replayed after the training teams (:mod:`physrover.learn.team_elites`).
 2. **Feedback.** Each policy's immediate feedback (its credit: D, G or a registered signal,
    :mod:`physrover.domain.credit`) and trajectory.
 3. **Fitness** from the fitness method (D, G, average, leniency or a fitness critic).
-4. **Evolution**: binary tournament with Cauchy mutation (:mod:`physrover.learn.evolution`).
+4. **Evolution**: binary tournament with Cauchy mutation (:mod:`physrover.learn.evolution`),
+   or the lab's n-elites tournament (``selection = "elites"``: the champion is elite 0).
 5. **Critic update** (critic methods only), after evolution as in Algorithm 1.
 
 Generations are counted from 1 everywhere (metrics.csv, progress, checkpoints, flags):
@@ -38,10 +41,12 @@ from physrover.config import RunConfig
 from physrover.core.compiled import dims
 from physrover.core.registry import CREDITS
 from physrover.envs.gymnasium_env import RoverVectorEnv, generator_from_state, team_spaces
-from physrover.learn.evolution import evolve
+from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.fitness import Problem, make_method
 from physrover.learn.kernels import gather_trajectories
 from physrover.learn.policies import PolicyLayout
+from physrover.learn.team_elites import TeamElites
+from physrover.learn.teams import softmax_teams
 
 
 @dataclass(frozen=True)
@@ -80,16 +85,23 @@ class CCEA:
             np.random.default_rng(s) for s in seeds
         ]
         self.genomes = self.layout.init((self.n_rovers, self.k), init_rng)
+        self.team_elites = None  # the lab's elite teams (selection = "elites")
+        if cfg.selection == "elites" and cfg.n_team_elites > 0:
+            self.team_elites = TeamElites(cfg.n_team_elites, self.genomes, self.team_rng)
+        self.n_elite_teams = 0 if self.team_elites is None else self.team_elites.n
         self.method = make_method(cfg, Problem(self.n_rovers, d.steps, n_obs, n_act), critic_init)
         self.credit = CREDITS[cfg.feedback]  # each rover's immediate feedback
         self.n_train = self.method.rounds * self.k
-        # a scenario redrawn per generation: the training teams share one start state and
-        # the champion's evaluation episodes draw fresh ones
+        self.n_played = self.n_train + self.n_elite_teams  # episodes before the evaluation's
+        # a scenario redrawn per generation: the training teams (and elite teams) share one
+        # start state and the champion's evaluation episodes draw fresh ones
         self.env = RoverVectorEnv(
-            self.n_train + cfg.eval_episodes, config=d, fresh_teams=cfg.eval_episodes
+            self.n_played + cfg.eval_episodes, config=d, fresh_teams=cfg.eval_episodes
         )
         self.env.reset(seed=int(env_seq.integers(2**31)))
         self.fitness = np.zeros((self.n_rovers, self.k))
+        # the fitness each policy carries into softmax team formation (NaN: not scored yet)
+        self.carried = np.zeros((self.n_rovers, self.k))
         self.champion = np.zeros(self.n_rovers, dtype=np.int64)
         self.method.observe_champion(self.champion_genomes(), -np.inf)  # an untrained team
         self.generation = 0
@@ -102,16 +114,27 @@ class CCEA:
         """Run one episode per row of (E, R) genome indices; returns G (E,) and each rover's
         credit (E, R), the configured signal (``[learn] feedback``, D by default).
 
-        Index k and above address the method's extra genomes (the hall of fame), if any.
+        Index k and above address the method's extra genomes (the hall of fame), if any,
+        then the elite teams (:meth:`_elite_index`).
         """
         rovers = np.arange(self.n_rovers)
         table = self.genomes
         extra = self.method.extra_genomes()
         if extra is not None:
             table = np.concatenate([table, extra], axis=1)
+        if self.team_elites is not None:
+            table = np.concatenate([table, self.team_elites.table()], axis=1)
         policy = self.layout.prepare(table[rovers[None, :], genome_index])  # (E, R, P) genomes
         world = self.env.play_episode(policy, headings=False)  # the CCEA reads no angle
         return world.G.copy(), np.array(self.credit(world), dtype=np.float64)
+
+    def _elite_index(self) -> np.ndarray:
+        """(n_elite_teams, R) rollout indices of the elite teams: after the population and
+        the method's extra genomes."""
+        extra = self.method.extra_genomes()
+        base = self.k + (0 if extra is None else extra.shape[1])
+        rows = base + np.arange(self.n_elite_teams)
+        return np.broadcast_to(rows[:, None], (self.n_elite_teams, self.n_rovers))
 
     def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:
         """(rounds, k, R) values by team -> (rounds, R, k) by policy; ``where[q, r, p]`` is
@@ -133,10 +156,14 @@ class CCEA:
         rounds = self.method.rounds
         start = time.perf_counter()
         # order[q, r, m]: the policy of rover r in team m of round q.
-        order = self.method.plan(self.team_rng, R, k)
+        if cfg.team_formation == "softmax":
+            order = softmax_teams(self.team_rng, self.carried, rounds, cfg.softmax_temperature)
+        else:
+            order = self.method.plan(self.team_rng, R, k)
         team_index = order.transpose(0, 2, 1).reshape(rounds * k, R)
         champions = np.broadcast_to(self.champion, (cfg.eval_episodes, R))
-        G, credit = self.rollout(np.concatenate([team_index, champions]))
+        G, credit = self.rollout(np.concatenate([team_index, self._elite_index(), champions]))
+        eval_G = float(G[self.n_played :].mean())
         t_rollout = time.perf_counter()
 
         where = np.argsort(order, axis=-1)  # where[q, r, p]: the team of policy p
@@ -150,15 +177,23 @@ class CCEA:
         t_feedback = time.perf_counter()
 
         # The champion evaluated in this batch, before evolution can overwrite it.
-        self.method.observe_champion(
-            self.genomes[np.arange(R), self.champion], float(G[self.n_train :].mean())
-        )
-        _, losers = evolve(
-            self.genomes, fitness, self.evo_rng, cfg.mutation_rate, cfg.mutation_scale
-        )
-        survivors = np.where(np.isnan(fitness), -np.inf, fitness)
-        survivors[np.arange(R)[:, None], losers] = -np.inf
-        self.champion = survivors.argmax(axis=1)
+        self.method.observe_champion(self.genomes[np.arange(R), self.champion], eval_G)
+        if cfg.selection == "elites":
+            self._evolve_elites(fitness, G, team_index)
+        else:
+            _, losers = evolve(
+                self.genomes,
+                fitness,
+                self.evo_rng,
+                cfg.mutation_rate,
+                cfg.mutation_scale,
+                cfg.mutation,
+            )
+            survivors = np.where(np.isnan(fitness), -np.inf, fitness)
+            survivors[np.arange(R)[:, None], losers] = -np.inf
+            self.champion = survivors.argmax(axis=1)
+            self.carried = fitness.copy()
+            self.carried[np.arange(R)[:, None], losers] = np.nan  # the mutated copies
         self.fitness = fitness
         t_evolution = time.perf_counter()
 
@@ -179,7 +214,7 @@ class CCEA:
         self.wall_seconds += end - start
         stats = GenerationStats(
             generation=self.generation + 1,
-            eval_G=float(G[self.n_train :].mean()),
+            eval_G=eval_G,
             train_G_mean=float(G[: self.n_train].mean()),
             fitness_mean=float(np.nanmean(fitness)),
             critic_loss=loss,
@@ -187,6 +222,35 @@ class CCEA:
         )
         self.generation += 1
         return stats
+
+    def _evolve_elites(self, fitness: np.ndarray, G: np.ndarray, team_index: np.ndarray) -> None:
+        """The lab's n-elites selection (:func:`evolve_elites`) over the populations and the
+        elite teams' members; then the next elite teams (:class:`TeamElites`). The champion
+        is elite 0 of every population."""
+        cfg = self.config.learn
+        pool, pool_fitness = self.genomes, fitness
+        if self.team_elites is not None:
+            members, member_fitness = self.team_elites.pool()
+            pool = np.concatenate([self.genomes, members], axis=1)
+            pool_fitness = np.concatenate([fitness, member_fitness], axis=1)
+            self.team_elites.select(
+                G[self.n_train : self.n_played],
+                self.genomes,
+                team_index,
+                G[: self.n_train],
+                fitness,
+            )
+        self.genomes[...], self.carried = evolve_elites(
+            pool,
+            pool_fitness,
+            self.k,
+            cfg.n_individual_elites,
+            self.evo_rng,
+            cfg.mutation_rate,
+            cfg.mutation_scale,
+            cfg.mutation,
+        )
+        self.champion = np.zeros(self.n_rovers, dtype=np.int64)
 
     def champion_genomes(self) -> np.ndarray:
         """(R, P) genomes of the current champion team."""
@@ -197,6 +261,10 @@ class CCEA:
     def state(self) -> tuple[dict[str, np.ndarray], dict]:
         """Everything needed to continue bit-identically: (arrays, JSON-serialisable meta)."""
         arrays = {"genomes": self.genomes, "fitness": self.fitness, "champion": self.champion}
+        if self.config.learn.team_formation != "random":
+            arrays["carried"] = self.carried
+        if self.team_elites is not None:
+            arrays.update(self.team_elites.state())
         method_meta = {}
         for key, value in _flatten(self.method.state()).items():
             if isinstance(value, np.ndarray):
@@ -219,6 +287,10 @@ class CCEA:
         self.genomes[...] = arrays["genomes"]
         self.fitness = np.array(arrays["fitness"])
         self.champion = np.array(arrays["champion"])
+        if "carried" in arrays:
+            self.carried = np.array(arrays["carried"])
+        if self.team_elites is not None:
+            self.team_elites.load(arrays)
         flat = {k[len("method/") :]: v for k, v in arrays.items() if k.startswith("method/")}
         flat.update(meta["method"])
         self.method.load(_unflatten(flat))

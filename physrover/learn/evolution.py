@@ -1,4 +1,5 @@
-"""Selection and mutation: binary tournament with Cauchy mutation (paper Section 4.2).
+"""Selection and mutation: binary tournament with Cauchy mutation (paper Section 4.2), and the
+lab's later n-elites tournament (:func:`evolve_elites`).
 
 The scheme of the paper's lab's code, applied to every rover's population at once:
 
@@ -40,14 +41,31 @@ def tournament_pairs(
     return np.where(a_wins, a, b), np.where(a_wins, b, a)
 
 
+def mutate(
+    offspring: np.ndarray,
+    rng: np.random.Generator,
+    rate: float,
+    scale: float,
+    noise: str = "cauchy",
+) -> None:
+    """Add ``scale`` times standard Cauchy (or ``noise="gauss"``: normal) noise to each weight
+    of ``offspring`` (..., P) with probability ``rate``, in place: one uniform draw per
+    weight, then one noise draw per mutated weight, in C order."""
+    hit = rng.random(offspring.shape) < rate
+    n = int(hit.sum())
+    draw = rng.standard_cauchy(n) if noise == "cauchy" else rng.standard_normal(n)
+    offspring[hit] += (scale * draw).astype(offspring.dtype)
+
+
 def evolve(
     genomes: np.ndarray,
     fitness: np.ndarray,
     rng: np.random.Generator,
     mutation_rate: float,
     mutation_scale: float = 1.0,
+    noise: str = "cauchy",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """One generation of binary tournament + Cauchy mutation, in place.
+    """One generation of binary tournament + mutation (Cauchy: the paper's), in place.
 
     Args:
         genomes: (R, k, P) populations; losers are overwritten.
@@ -59,9 +77,57 @@ def evolve(
     winners, losers = tournament_pairs(fitness, rng)
     rows = np.arange(genomes.shape[0])[:, None]
     offspring = genomes[rows, winners]  # (R, k // 2, P) copies
-    mutate = rng.random(offspring.shape) < mutation_rate
-    offspring[mutate] += (mutation_scale * rng.standard_cauchy(int(mutate.sum()))).astype(
-        genomes.dtype
-    )
+    mutate(offspring, rng, mutation_rate, mutation_scale, noise)
     genomes[rows, losers] = offspring
     return winners, losers
+
+
+def evolve_elites(
+    pool: np.ndarray,
+    pool_fitness: np.ndarray,
+    k: int,
+    n_elites: int,
+    rng: np.random.Generator,
+    mutation_rate: float,
+    mutation_scale: float,
+    noise: str = "gauss",
+) -> tuple[np.ndarray, np.ndarray]:
+    """The lab's n-elites binary tournament (``generate_offspring`` in its ``ccea_lib.py``).
+
+    Each population's next k policies are drawn from its pool (the k current policies, then
+    the members of the elite teams, :mod:`physrover.learn.team_elites`):
+
+    1. the ``n_elites`` fittest pool members, best first, copied unmutated (ties: lower pool
+       index first), so the champion, the best, is policy 0;
+    2. ``k - n_elites`` winners of binary tournaments, each between two distinct pool members
+       drawn uniformly (the higher fitness wins, a fair coin breaks ties), copied and
+       mutated (:func:`mutate`).
+
+    NaN fitness counts as worst. The lab lists each current policy twice in the pool (once
+    in the population, once as a member of its ad-hoc team); here each appears once.
+
+    Args:
+        pool: (R, n, P) genomes, n >= 2.
+        pool_fitness: (R, n) their fitness.
+
+    Returns:
+        genomes: (R, k, P) the next populations.
+        carried: (R, k) the fitness each new policy carries (the elites' own, NaN for the
+            mutated offspring, which no episode has scored yet).
+    """
+    n_pop, n = pool_fitness.shape
+    fit = np.where(np.isnan(pool_fitness), -np.inf, pool_fitness)
+    rows = np.arange(n_pop)[:, None]
+    best = np.argsort(-fit, axis=1, kind="stable")[:, :n_elites]  # (R, n_elites)
+    n_tour = k - n_elites
+    a = rng.integers(n, size=(n_pop, n_tour))
+    b = rng.integers(n - 1, size=(n_pop, n_tour))
+    b += b >= a  # a second member, distinct from the first
+    fa, fb = fit[rows, a], fit[rows, b]
+    coin = rng.random(a.shape) < 0.5
+    winners = np.where((fa > fb) | ((fa == fb) & coin), a, b)
+    offspring = pool[rows, winners]  # (R, n_tour, P) copies
+    mutate(offspring, rng, mutation_rate, mutation_scale, noise)
+    genomes = np.concatenate([pool[rows, best], offspring], axis=1)
+    carried = np.concatenate([pool_fitness[rows, best], np.full((n_pop, n_tour), np.nan)], 1)
+    return genomes, carried

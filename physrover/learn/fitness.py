@@ -215,15 +215,25 @@ class MethodSpec:
     """Whether it has a fitness critic (so the [learn] critic fields apply to it)."""
     trajectory: bool = False
     """Whether it has a trajectory critic (so the [learn] ``trajectory_*`` fields apply)."""
+    plans_teams: bool = False
+    """Whether its :meth:`FitnessMethod.plan` forms teams its own way (the hall of fame), so
+    ``team_formation = "softmax"`` cannot replace it."""
 
 
 def register_method(
-    name: str, build, summary: str, section: str, critic: bool = False, trajectory: bool = False
+    name: str,
+    build,
+    summary: str,
+    section: str,
+    critic: bool = False,
+    trajectory: bool = False,
+    plans_teams: bool = False,
 ) -> MethodSpec:
     """Add a fitness method under ``name`` (usable in TOML, ``--method`` and ``--set``);
     ``critic``: it has a fitness critic, which the [learn] critic fields configure;
-    ``trajectory``: a trajectory critic, which the ``trajectory_*`` fields configure."""
-    spec = MethodSpec(build, summary, section, critic, trajectory)
+    ``trajectory``: a trajectory critic, which the ``trajectory_*`` fields configure;
+    ``plans_teams``: its ``plan`` is not the default random teams."""
+    spec = MethodSpec(build, summary, section, critic, trajectory, plans_teams)
     return FITNESS_METHODS.register(name, spec)
 
 
@@ -310,6 +320,7 @@ register_method(
     lambda cfg, problem, rng: HallOfFame(problem.n_rovers),
     "feedback with the best team found so far as teammates",
     "Sec. 2.3",
+    plans_teams=True,
 )
 register_method(
     "mean-critic",

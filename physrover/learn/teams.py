@@ -1,0 +1,38 @@
+"""Team formation: which policy of each population plays in which team.
+
+A generation's round is a permutation of every population: ``order[q, r, m]`` is the policy of
+rover r in team m of round q, so every policy plays exactly once per round. The paper draws the
+permutations uniformly (:meth:`physrover.learn.fitness.FitnessMethod.plan`, the default);
+:func:`softmax_teams` is the later lab code's ``form_softmax_teams``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def softmax_teams(
+    rng: np.random.Generator, fitness: np.ndarray, rounds: int, temperature: float = 1.0
+) -> np.ndarray:
+    """(rounds, R, k) team orders drawn by a softmax over each population's fitness.
+
+    The lab's ``form_softmax_teams`` forms team 0, then team 1, ...: each team takes one
+    policy per population, drawn with probability ``exp(f_p / tau)`` normalised over the
+    policies not drawn yet, until every policy has played. That is a Plackett-Luce order of
+    each population, which is drawn in one step here: sort the policies by ``f_p / tau`` plus
+    independent standard Gumbel noise, largest first (the Gumbel-top-k identity). Good
+    policies therefore tend to share the early teams, and the last team takes who is left.
+
+    Args:
+        rng: the run's team generator; one Gumbel draw of shape (rounds, R, k).
+        fitness: (R, k) the fitness each policy carries (the previous generation's). NaN,
+            a policy not yet scored, counts as 0, the lab's convention for ``None``.
+        rounds: independent orders to draw (a method's training rounds).
+        temperature: tau > 0, in fitness units (the lab's is 1).
+
+    Returns:
+        order: (rounds, R, k) int64, each ``order[q, r]`` a permutation of ``range(k)``.
+    """
+    f = np.nan_to_num(np.asarray(fitness, dtype=np.float64), nan=0.0) / temperature
+    keys = f[None] + rng.gumbel(size=(rounds, *f.shape))
+    return np.argsort(-keys, axis=-1, kind="stable")
