@@ -2,7 +2,7 @@
 
 The contact pass (:func:`physrover.domain.contacts.speculative_contacts`) needs the
 pairs (i, j), i < j, of a team's rovers closer than the distance they could close within a
-physics step; a sensor with a finite radius needs the pairs within its radius; the spawn's
+physics step; a sensor with a finite radius the neighbours within its radius; the spawn's
 separation the pairs that overlap. Listing them by testing every pair
 (:func:`near_pairs_all`) costs R (R - 1) / 2 distance tests, which dominates at hundreds
 of rovers. :func:`near_pairs_grid` lists the same pairs, in the same order (i ascending,
@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from physrover.core.compiled import jit
+from physrover.core.compiled import jit, jit_inline
 
 GRID_MIN_POINTS = 80
 """Teams of at least this many rovers find their contact pairs, and their spawn's
@@ -41,12 +41,14 @@ one thread, teams spread as ``physrover bench world --rovers`` spreads them, rea
 listing the pairs costs the same both ways at 75 rovers, the grid 1.5x less at 100, 5x
 at 300, 17x at 1000 (``experiments/scaling_vs_vmas.py`` has the whole world's scaling)."""
 
-SENSOR_GRID_MIN_POINTS = 400
+SENSOR_GRID_MIN_POINTS = 100
 """Teams of at least this many rovers find the neighbours of a sensor with a finite radius
 from the grid. The all-pairs sensor is vectorised over 16 observing rovers at a time and
-stays faster far longer: with a radius of 5 in the same spread, 92 against 105 us a team
-at 300 rovers, 5x slower than the grid at 1000. A denser team (more neighbours within the
-radius) moves the crossover up."""
+wins in small teams. Measured (2026-12-03, EPYC Zen 4, one thread, radius 5, teams spread as
+``physrover bench world --rovers`` spreads them, layouts changing every step), us to sense
+1500 rovers: all-pairs 43 / 127 / 172 / 284 / 457 at 15 / 75 / 100 / 200 / 400 rovers a
+team, the grid 150-170 throughout (``experiments/scaling_vs_vmas.py``). A denser team (more
+neighbours within the radius) moves the crossover up."""
 
 _CELL_MARGIN = 1.0 + 1e-9
 """A cell is this much wider than the reach: two points closer than the reach then always
@@ -122,6 +124,21 @@ def grid(points, reach):
     return cells, nx, ny, starts, members, ordered
 
 
+@jit_inline
+def stencil_runs(slot, cell_x, cell_y, nx, ny, starts):
+    """The half stencil of the point in ``slot`` of the cell order (cell (cell_x, cell_y)
+    of :func:`grid`): two runs ``((start, end), (start, end))`` of the cell order, the rest
+    of its own cell with the cell above, and the next column's three cells (empty at the
+    last column). Every pair of points in neighbouring cells is in exactly one of the two
+    points' half stencils: the one earlier in the cell order."""
+    own_end = starts[cell_x * ny + min(cell_y + 1, ny - 1) + 1]
+    if cell_x + 1 < nx:
+        column = (cell_x + 1) * ny
+        return ((slot + 1, own_end), (starts[column + max(cell_y - 1, 0)],
+                                      starts[column + min(cell_y + 1, ny - 1) + 1]))  # fmt: skip
+    return ((slot + 1, own_end), (np.int64(0), np.int64(0)))
+
+
 @jit
 def near_pairs_grid(points, reach_sq, near, inclusive=False):
     """:func:`near_pairs_all` from the cell list (:func:`grid`): the same pairs in the same
@@ -144,14 +161,7 @@ def near_pairs_grid(points, reach_sq, near, inclusive=False):
     for slot in range(members.shape[0]):
         a = members[slot]
         xa, ya = ordered[slot, 0], ordered[slot, 1]
-        cx, cy = cells[a, 0], cells[a, 1]
-        own_end = starts[cx * ny + min(cy + 1, ny - 1) + 1]
-        if cx + 1 < nx:
-            column = (cx + 1) * ny
-            runs = ((slot + 1, own_end), (starts[column + max(cy - 1, 0)],
-                                          starts[column + min(cy + 1, ny - 1) + 1]))  # fmt: skip
-        else:
-            runs = ((slot + 1, own_end), (0, 0))
+        runs = stencil_runs(slot, cells[a, 0], cells[a, 1], nx, ny, starts)
         room = (runs[0][1] - runs[0][0]) + (runs[1][1] - runs[1][0])
         if n_found + room > found.shape[0]:
             grown = np.empty((2 * (n_found + room), 2), np.int64)

@@ -7,9 +7,9 @@ an object a rover does not see adds nothing. The paper's sensor sees every objec
 all-pairs by definition, vectorised over the observing rovers (:func:`_sense_quadrants`,
 R^2 distance terms a team). A sensor with a finite radius in a team of at least
 :data:`physrover.domain.broadphase.SENSOR_GRID_MIN_POINTS` rovers finds the pairs of
-rovers within the radius from a uniform grid instead (:func:`_sense_local`), adding the
-same terms in the same order, so its observations are bit for bit those of the all-pairs
-loop. The paper's unbounded sensor costs R^2 distance terms a team whatever is done
+rovers within the radius from a uniform grid instead (:func:`_sense_local`): the same
+terms, added in the grid's order, so its sums equal the all-pairs loop's to float64
+rounding. The paper's unbounded sensor costs R^2 distance terms a team whatever is done
 (about 0.9 ms a step for 1000 rovers on one core): give large teams a radius.
 """
 
@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from physrover.core.compiled import jit
-from physrover.domain.broadphase import SENSOR_GRID_MIN_POINTS, near_pairs_grid
+from physrover.domain.broadphase import SENSOR_GRID_MIN_POINTS, grid, stencil_runs
 
 
 @jit
@@ -172,7 +172,7 @@ def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
     """
     n_sectors = len(sectors)
     if radius_sq is not None and state.cos_h.shape[1] >= SENSOR_GRID_MIN_POINTS:
-        _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs, scratch)
+        _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs)
         return
     if n_sectors == 4:
         _sense_quadrants(e, state, d_min_sq, radius_sq, obs, scratch)
@@ -200,29 +200,59 @@ def sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch):
 
 
 @jit
-def _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs, scratch):
-    """:func:`sense_team` with a finite radius from the cell list: the pairs (i, j), i < j,
-    within the radius (:func:`physrover.domain.broadphase.near_pairs_grid`, in index order)
-    each add their term to both rovers, i's view of j and j's of i (the offset negated:
-    exact in floating point); then each rover adds the POIs within the radius. Each rover
-    so receives its neighbours' terms in ascending index order, as in the all-pairs loops
-    (whose unseen objects add +0.0): the same sums, bit for bit."""
+def _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs):
+    """:func:`sense_team` with a finite radius from the cell list
+    (:func:`physrover.domain.broadphase.grid`): each pair of rovers within the radius is
+    found once, from the half stencil (:func:`~physrover.domain.broadphase.stencil_runs`)
+    of its first rover in cell order, and adds its term to both rovers, i's view of j and
+    j's of i (the offset negated: exact); then each rover adds the POIs within the radius.
+
+    The rovers' terms arrive in cell order, not index order: each rover sees the same
+    neighbours with the same terms as in the all-pairs loops, and its sums differ from
+    theirs at most by float64 rounding (a few 1e-16, relative), which the float32
+    observations almost never show (a test bounds both). Sorting the pairs into index
+    order to make the sums bit for bit equal cost as much as the rest of the sensor.
+
+    Speed (measured on layouts that change every step, as in a run: a fixed layout lets the
+    branch predictor learn it): a rover's candidates are first compacted, branch-free, into
+    the ones within the radius, and only those are sensed; headings and sums are kept in
+    the cell order, so both rovers of a pair are near in memory. 1000 rovers: 115 us a step
+    against 158 with a branch per candidate, 227 branch-free throughout."""
     positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
     n_rovers = cos_h.shape[1]
-    n_near, near = near_pairs_grid(positions[e], radius_sq, np.empty((8 * n_rovers, 2), np.int64),
-                                   True)  # fmt: skip
-    acc = np.zeros((n_rovers, 2 * n_sectors))  # by rover and sector, as sense_team's acc
-    for k in range(n_near):
-        i, j = near[k, 0], near[k, 1]
-        dx = positions[e, j, 0] - positions[e, i, 0]
-        dy = positions[e, j, 1] - positions[e, i, 1]
-        term = 1.0 / max(dx * dx + dy * dy, d_min_sq)  # Eq. 14
-        ci, si, cj, sj = cos_h[e, i], sin_h[e, i], cos_h[e, j], sin_h[e, j]
-        acc[i, sector(ci * dx + si * dy, ci * dy - si * dx, n_sectors)] += term
-        acc[j, sector(cj * -dx + sj * -dy, cj * -dy - sj * -dx, n_sectors)] += term
+    cells, nx, ny, starts, members, ordered = grid(positions[e], math.sqrt(radius_sq))
+    n_in = members.shape[0]
+    trig = np.empty((n_in, 2))  # cos, sin of the heading, in cell order
+    for slot in range(n_in):
+        trig[slot, 0], trig[slot, 1] = cos_h[e, members[slot]], sin_h[e, members[slot]]
+    acc = np.zeros((n_in, 2 * n_sectors))  # by slot and sector, as sense_team's acc
+    near = np.empty(n_in, np.int64)  # one rover's neighbours ahead of it: slots, offsets
+    near_dx, near_dy, near_sq = np.empty(n_in), np.empty(n_in), np.empty(n_in)
+    for slot in range(n_in):
+        xi, yi = ordered[slot, 0], ordered[slot, 1]
+        ci, si = trig[slot, 0], trig[slot, 1]
+        n_near = 0
+        for run in stencil_runs(slot, cells[members[slot], 0], cells[members[slot], 1], nx,
+                                ny, starts):  # fmt: skip
+            for other in range(run[0], run[1]):  # written, kept if within the radius
+                dx = ordered[other, 0] - xi
+                dy = ordered[other, 1] - yi
+                dist_sq = dx * dx + dy * dy
+                near[n_near], near_dx[n_near], near_dy[n_near] = other, dx, dy
+                near_sq[n_near] = dist_sq
+                n_near += dist_sq <= radius_sq
+        for k in range(n_near):
+            other, dx, dy = near[k], near_dx[k], near_dy[k]
+            term = 1.0 / max(near_sq[k], d_min_sq)  # Eq. 14
+            cj, sj = trig[other, 0], trig[other, 1]
+            acc[slot, sector(ci * dx + si * dy, ci * dy - si * dx, n_sectors)] += term
+            acc[other, sector(cj * -dx + sj * -dy, cj * -dy - sj * -dx, n_sectors)] += term
+    by_rover = np.zeros((n_rovers, 2 * n_sectors))  # a rover in no cell sees nothing
+    for slot in range(n_in):
+        by_rover[members[slot]] = acc[slot]
     for i in range(n_rovers):
-        _add_pois(e, i, state, cos_h[e, i], sin_h[e, i], d_min_sq, n_sectors, radius_sq, acc[i],
-                  obs)  # fmt: skip
+        _add_pois(e, i, state, cos_h[e, i], sin_h[e, i], d_min_sq, n_sectors, radius_sq,
+                  by_rover[i], obs)  # fmt: skip
 
 
 @jit
