@@ -496,3 +496,35 @@ def select_team_elites_loops(elite_genomes, elite_fitness, elite_G, population, 
     candidates.sort(key=lambda c: (-c[0], c[1]))
     best = candidates[:n]
     return np.stack([c[2] for c in best]), np.stack([c[3] for c in best])
+
+
+# -- POI rules (issue 33, [[pois]]), as plain loops ---------------------------------------------
+
+
+def score_rules_loops(positions, poi_positions, poi_values, radius, n_req, after, final,
+                      scored_steps, removed=None):  # fmt: skip
+    """G of one team's episode under POI rules, rescored from positions with plain loops.
+
+    ``positions`` (T + 1, R, 2) at every step, ``poi_positions`` (K, 2), ``poi_values``
+    (K,), per POI its ``radius``, coupling ``n_req``, predecessors ``after`` (lists of
+    indices) and ``final`` (counts only at the last scored step); ``scored_steps`` the steps
+    that count, in order; rover ``removed`` left out of every count (D's counterfactual).
+    Returns (G, first capture step per POI, -1 if none).
+    """
+    n_pois = len(poi_values)
+    first = [-1] * n_pois
+    for t in scored_steps:
+        for k in range(n_pois):
+            if first[k] >= 0 or (final[k] and t != scored_steps[-1]):
+                continue
+            n = 0
+            for i in range(len(positions[t])):
+                dx = poi_positions[k][0] - positions[t][i][0]
+                dy = poi_positions[k][1] - positions[t][i][1]
+                if i != removed and dx * dx + dy * dy <= radius[k] * radius[k]:  # Eq. 13
+                    n += 1
+            ready = all(0 <= first[j] < t for j in after[k])
+            if n >= n_req[k] and ready:
+                first[k] = t
+    G = sum(poi_values[k] for k in range(n_pois) if first[k] >= 0)
+    return G, first

@@ -225,15 +225,17 @@ def load_toml_file(path: str | Path) -> dict[str, Any]:
     return loads_toml(text, str(path))
 
 
-def dumps_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
-    """Write ``{table: {key: value}}`` as TOML, one ``[table]`` after another.
+def dumps_toml(tables: Mapping[str, Any]) -> str:
+    """Write ``{table: {key: value}}`` as TOML, one ``[table]`` after another (a list of
+    tables as ``[[table]]``s).
 
     Written by tomlkit: strings escaped (quotes, backslashes, newlines, control characters),
     keys quoted where TOML needs it, ``inf``/``nan`` for non-finite floats, lists inline
     (``poi_values = [1.0, 2.0]``). For every config physrover ships the text is byte for byte
     what physrover 0.4's own writer gave, so run directories' config.toml read the same.
     """
-    return tomlkit.dumps({name: dict(table) for name, table in tables.items()})
+    return tomlkit.dumps({name: dict(table) if isinstance(table, Mapping) else
+                          [dict(t) for t in table] for name, table in tables.items()})  # fmt: skip
 
 
 def parse_override(text: str) -> tuple[str, Any]:

@@ -32,6 +32,7 @@ from physrover.config.base import (
     dumps_toml,
     loads_toml,
 )
+from physrover.config.pois import check_pois, coerce_pois, pois_table
 from physrover.core.registry import DYNAMICS, SCENARIOS, SENSORS
 
 PER_ROVER = ("rover_radius", "rover_mass", "max_force", "max_torque", "max_speed")
@@ -185,6 +186,9 @@ class DomainConfig(ConfigBase):
     """[scenario]: start states (default ``"ring"``, the paper's)."""
     sensor: Any = None
     """[sensor]: what a rover observes (default ``"density"``, Eqs. 15-16 in quadrants)."""
+    pois: Any = ()
+    """``[[pois]]``: POIs with rules (:mod:`physrover.config.pois`), one table per POI; when
+    given, ``poi_values`` is derived from them. Empty: the paper's POIs."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -195,6 +199,9 @@ class DomainConfig(ConfigBase):
                               DEFAULT_KINDS[section])  # fmt: skip
             object.__setattr__(self, section, value)
         check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
+        object.__setattr__(self, "pois", coerce_pois(self.pois))
+        if self.pois:
+            object.__setattr__(self, "poi_values", tuple(p.value for p in self.pois))
         check(len(self.poi_values) >= 1, "poi_values", "must list at least one POI value")
         for v in self.poi_values:
             check(
@@ -203,11 +210,13 @@ class DomainConfig(ConfigBase):
                 f"every value must be positive and finite, got {v}",
             )
         check(
-            len(set(self.poi_values)) == len(self.poi_values),
+            len(set(self.poi_values)) == len(self.poi_values) or self.pois,
             "poi_values",
             f"values must be distinct, got {list(self.poi_values)}",
         )
         object.__setattr__(self, "n_req", self._coerced_n_req())
+        if self.pois:
+            check_pois(self)
         for n in self.n_req_per_poi:
             check(
                 1 <= n <= self.n_rovers,
@@ -261,18 +270,24 @@ class DomainConfig(ConfigBase):
     def n_req_per_poi(self) -> tuple[int, ...]:
         """The coupling of each POI, in the order of ``poi_values``."""
         n_req = self.n_req
+        if self.pois:
+            return tuple(p.n_req or n_req for p in self.pois)
         return n_req if isinstance(n_req, tuple) else (n_req,) * len(self.poi_values)
 
     # -- flat names ------------------------------------------------------------------------
 
     def tables(self) -> dict[str, dict[str, Any]]:
-        """{section: table} of [domain], [physics], [scenario], [sensor], as in TOML."""
-        own = {k: v for k, v in self.to_dict().items() if k not in COMPONENTS}
+        """{section: table} of [domain], [physics], [scenario], [sensor] (and ``pois``, a
+        list of tables, if any), as in TOML."""
+        derived = ("pois", "poi_values") if self.pois else ("pois",)
+        own = {k: v for k, v in self.to_dict().items() if k not in (*COMPONENTS, *derived)}
+        pois = {"pois": pois_table(self.pois)} if self.pois else {}
         return {
             "domain": own,
             "physics": self.physics.to_dict(),
             "scenario": self.scenario.table(),
             "sensor": self.sensor.table(),
+            **pois,
         }
 
     def flat_dict(self) -> dict[str, Any]:
@@ -329,6 +344,8 @@ class DomainConfig(ConfigBase):
         for section, values in fields.items():
             if values:
                 parts[section] = parts[section].replace(**values)
+        check("poi_values" not in own or not own.get("pois", self.pois), "poi_values",
+              "the POIs are [[pois]] tables: set each table's value")  # fmt: skip
         return DomainConfig(**{**self.to_dict(), **own, **parts})
 
     def _component(self, section: str, value: Any):
@@ -350,17 +367,20 @@ class DomainConfig(ConfigBase):
     @classmethod
     def from_toml(cls, text: str) -> DomainConfig:
         data = loads_toml(text)
-        unknown = sorted(set(data) - {"domain", *COMPONENTS})
+        unknown = sorted(set(data) - {"domain", *COMPONENTS, "pois"})
         if unknown:
             raise ConfigError(unknown[0], "unknown TOML table (expected [domain], [physics], "
-                              "[scenario] or [sensor])")  # fmt: skip
+                              "[scenario], [sensor] or [[pois]])")  # fmt: skip
         return cls.from_tables(data)
 
     @classmethod
     def from_tables(cls, data: Mapping[str, Any]) -> DomainConfig:
-        """From the [domain], [physics], [scenario] and [sensor] tables of a TOML file."""
+        """From the [domain], [physics], [scenario], [sensor] and [[pois]] tables of a TOML
+        file."""
         domain = dict(data.get("domain", {}))
-        for section in COMPONENTS:
+        if "pois" in data and "poi_values" in domain:
+            raise ConfigError("poi_values", "give the POIs as [[pois]] or as poi_values, not both")
+        for section in (*COMPONENTS, "pois"):
             if section in domain and section in data:
                 raise ConfigError(f"domain.{section}", f"given in [domain] and as [{section}]")
             if section in data:

@@ -18,7 +18,7 @@ from physrover.config.base import (
 )
 from physrover.config.domain import COMPONENTS, REGISTRIES, DomainConfig
 from physrover.config.learn import LearnConfig
-from physrover.core.registry import TRAINERS
+from physrover.core.registry import CREDITS, TRAINERS
 
 SHARED_WITH_LEARN = ("seed", "hidden", "eval_episodes", "checkpoint_every")
 """Fields a trainer's table shares with [learn], set in [learn] only (one seed per run)."""
@@ -41,6 +41,8 @@ class RunConfig:
             raise ConfigError("domain", "must be a DomainConfig")
         if not isinstance(self.learn, LearnConfig):
             raise ConfigError("learn", "must be a LearnConfig")
+        credit = CREDITS[self.learn.feedback] if self.learn.feedback in CREDITS else None
+        getattr(credit, "check", lambda domain: None)(self.domain)  # defined for the domain?
         spec = TRAINERS[self.learn.method] if self.learn.method in TRAINERS else None
         if spec is None:
             if self.trainer is not None:
@@ -94,9 +96,9 @@ class RunConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
         sections = {spec.config.section: name for name, spec in TRAINERS.items()}
-        unknown = sorted(set(data) - {"domain", *COMPONENTS, "learn", *sections})
+        unknown = sorted(set(data) - {"domain", *COMPONENTS, "pois", "learn", *sections})
         if unknown:
-            known = ", ".join(["domain", *COMPONENTS, "learn", *sections])
+            known = ", ".join(["domain", *COMPONENTS, "pois", "learn", *sections])
             raise ConfigError(unknown[0], f"unknown TOML table (known: {known}; a trainer of "
                               "your own registers its table when its module is imported, e.g. "
                               "physrover --import my_parts.py)")  # fmt: skip
@@ -137,6 +139,9 @@ class RunConfig:
                 domain_names |= set(registry[kind].field_names())
         for name, value in overrides.items():
             table, _, field = name.rpartition(".")
+            if name == "pois" or (name == "poi_values" and self.domain.pois):
+                raise ConfigError(name, "set [[pois]] tables in a TOML file (a sweep's: "
+                                  "[[base.pois]])")  # fmt: skip
             if table in ("domain", *COMPONENTS):
                 domain[name] = value
             elif table == "learn":

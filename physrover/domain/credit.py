@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from physrover.config import check
 from physrover.core.registry import CREDITS
 from physrover.domain.scoring import d_plus_plus
 
@@ -33,6 +34,11 @@ class Credit:
         """(E, R) float64 feedback of each rover of each team for the episode ``world`` just
         played."""
         raise NotImplementedError
+
+    def check(self, domain) -> None:
+        """Raise :class:`~physrover.config.ConfigError` (field ``feedback``) if the signal is
+        not defined for ``domain`` (a :class:`~physrover.config.DomainConfig`); a run's
+        config calls it when it is built. Every domain, by default."""
 
 
 class Difference(Credit):
@@ -54,6 +60,13 @@ class DPlusPlus(Credit):
 
     def __call__(self, world) -> np.ndarray:
         return d_plus_plus(world.state, world.n_req)
+
+    def check(self, domain) -> None:
+        """D++'s partners complete couplings at any step: not defined for ordered (``after``)
+        or final-state POIs."""
+        ruled = any(p.after or p.score_at != "any" for p in domain.pois)
+        check(not ruled, "feedback", 'D++ is not defined for POIs with after or score_at = '
+              '"final" ([[pois]])')  # fmt: skip
 
 
 def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Credit:

@@ -73,12 +73,15 @@ def _move(cos_h, sin_h, heading, fwd, left, headings):
 
 
 @jit
-def score_team(e, state, d_cap_sq, n_req, t):
+def score_team(e, state, d_cap_sq, n_req, t, rules=None):
     """Score step ``t`` of team ``e`` (Eqs. 11-13 and D's counterfactual captures) in
-    ``state``'s scoring arrays; ``n_req`` (K,) int64 is each POI's coupling.
+    ``state``'s scoring arrays; ``n_req`` (K,) int64 is each POI's coupling; ``rules`` a
+    :class:`~physrover.domain.poi_rules.PoiRules` or None (the paper's POIs: the rules'
+    branches are compiled away).
 
     Eq. 13 uses the bounded distance of Eq. 14, ``max(d, d_min) <= d_cap``, which is
-    ``d <= d_cap`` since the config keeps ``d_min <= d_cap``.
+    ``d <= d_cap`` since the config keeps ``d_min <= d_cap`` (and every capture radius
+    ``>= d_min``).
     """
     positions, poi_positions = state.rover_positions, state.poi_positions
     n_rovers = positions.shape[1]
@@ -87,38 +90,73 @@ def score_team(e, state, d_cap_sq, n_req, t):
     near = state.in_range[t, e]
     captured, captured_without = state.captured, state.captured_without
     for k in range(n_pois):
+        radius_sq = d_cap_sq
+        if rules is not None:
+            radius_sq = rules.capture_radius_sq[k]
         px = poi_positions[e, k, 0]
         py = poi_positions[e, k, 1]
         n = 0
         for i in range(n_rovers):
             dx = px - positions[e, i, 0]
             dy = py - positions[e, i, 1]
-            inside = dx * dx + dy * dy <= d_cap_sq  # Eq. 13
+            inside = dx * dx + dy * dy <= radius_sq  # Eq. 13
             near[i, k] = inside
             n += np.int64(inside)
         count[k] = n
     total = 0.0
     for k in range(n_pois):
-        if count[k] >= n_req[k]:  # Eq. 12
-            if not captured[e, k]:
-                state.capture_step[e, k] = t
-                captured[e, k] = True
-        for i in range(n_rovers):  # Eq. 12 without rover i
-            if count[k] - np.int64(near[i, k]) >= n_req[k]:
-                captured_without[e, i, k] = True
+        if rules is not None:
+            _score_rules(e, k, state, rules, n_req, t)
+        else:
+            if count[k] >= n_req[k]:  # Eq. 12
+                if not captured[e, k]:
+                    state.capture_step[e, k] = t
+                    captured[e, k] = True
+            for i in range(n_rovers):  # Eq. 12 without rover i
+                if count[k] - np.int64(near[i, k]) >= n_req[k]:
+                    captured_without[e, i, k] = True
         if captured[e, k]:  # Eq. 11
             total += state.poi_values[e, k]
     state.score[e] = total
 
 
 @jit
-def score(state, d_cap, n_req, t):
+def _predecessors_before(after_k, first_steps, t):
+    """Whether every POI j with ``after_k[j]`` was first captured (``first_steps[j]``, -1:
+    never) at a step before ``t``."""
+    for j in range(after_k.shape[0]):
+        if after_k[j] and (first_steps[j] < 0 or first_steps[j] >= t):
+            return False
+    return True
+
+
+@jit
+def _score_rules(e, k, state, rules, n_req, t):
+    """Eq. 12 for POI k of team e at step t under ``rules`` (:mod:`physrover.domain.poi_rules`),
+    for the team and for each counterfactual without rover i; the counts are this step's."""
+    if rules.final_only[k] and t != rules.t_final:
+        return
+    count, near = state.poi_counts[e, k], state.in_range[t, e]
+    if count >= n_req[k] and not state.captured[e, k]:
+        if _predecessors_before(rules.after[k], state.capture_step[e], t):
+            state.capture_step[e, k] = t
+            state.captured[e, k] = True
+    for i in range(near.shape[0]):
+        if state.captured_without[e, i, k] or count - np.int64(near[i, k]) < n_req[k]:
+            continue
+        if _predecessors_before(rules.after[k], rules.step_without[e, i], t):
+            state.captured_without[e, i, k] = True
+            rules.step_without[e, i, k] = t
+
+
+@jit
+def score(state, d_cap, n_req, t, rules=None):
     """Score step ``t`` (0 after reset, then 1, 2, ...) of every team in ``state``: the POIs'
     rover counts and which rovers are in range (``in_range[t]``), captures (Eqs. 12-13)
     under each POI's coupling ``n_req`` (K,) int64, G so far (Eq. 11) and the captures
-    without each rover (the counterfactual of D, Eq. 1)."""
+    without each rover (the counterfactual of D, Eq. 1); ``rules``: :func:`score_team`'s."""
     for e in range(state.cos_h.shape[0]):
-        score_team(e, state, d_cap * d_cap, n_req, t)
+        score_team(e, state, d_cap * d_cap, n_req, t, rules)
 
 
 @jit

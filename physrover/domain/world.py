@@ -38,6 +38,7 @@ import numpy as np
 from physrover.config import DomainConfig
 from physrover.core.registry import DYNAMICS
 from physrover.domain.kernels import ideal_step_flat, score
+from physrover.domain.poi_rules import PoiRules
 from physrover.domain.scenarios import StartState
 from physrover.domain.scoring import difference, start_episode
 from physrover.domain.state import WorldState
@@ -133,6 +134,7 @@ class RoverWorld:
         )
         self.state.obstacles[:] = obstacles
         self.n_req = np.array(config.n_req_per_poi, dtype=np.int64)  # (K,) coupling per POI
+        self.poi_rules = PoiRules.build(config, self.n_teams)  # None: the paper's POIs
         self._scores_final_state = config.scored_states == "all"
         shape = (config.steps, self.n_teams, self.n_rovers)
         self.observations = np.zeros((*shape, self.obs_dim), dtype=np.float32)
@@ -140,8 +142,8 @@ class RoverWorld:
         states = (config.steps + 1, self.n_teams, self.n_rovers)
         self.position_history = np.zeros((*states, 2))
         self.heading_history = np.zeros(states)
-        # idealised motion and the built-in sensor: one compiled call per step
-        self._fused = self.dynamics.fused and self.sensor.fused
+        # idealised motion, the built-in sensor and the paper's POIs: one compiled call a step
+        self._fused = self.dynamics.fused and self.sensor.fused and self.poi_rules is None
         if self._fused:  # the density sensor's parameters, as the step kernel takes them
             self._sensing = self.sensor.kernel_arguments(config.d_min)
         self.fresh_teams = 0
@@ -183,6 +185,8 @@ class RoverWorld:
         state.poi_values[:] = values
         self.dynamics.reset(state)  # may push overlapping spawns apart
         start_episode(state)
+        if self.poi_rules is not None:
+            self.poi_rules.start()
         self.t = 0
         return self._sense_and_score()
 
@@ -254,7 +258,7 @@ class RoverWorld:
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
         self.sensor.observe(self.state, cfg.d_min, obs)
         if self._scored(t):
-            score(self.state, cfg.d_cap, self.n_req, t)
+            score(self.state, cfg.d_cap, self.n_req, t, self.poi_rules)
         self.position_history[t] = self.state.rover_positions
         self.heading_history[t] = self.state.rover_headings
         if t < cfg.steps:

@@ -1,0 +1,104 @@
+"""POIs with rules (``[[pois]]`` tables): per-POI value, coupling, capture radius, order and
+scoring time, beyond the paper's POIs that differ only in value.
+
+Without ``[[pois]]`` a domain's POIs are the paper's: ``[domain] poi_values`` and ``n_req``
+(one number or one per POI), captured within ``d_cap`` at any scored step (Eqs. 11-13).
+With them, each table is one POI, in order, and may set:
+
+- ``value`` V_k (default 1.0);
+- ``n_req``, its coupling (default 0: ``[domain] n_req``, so a sweep's grid over ``n_req``
+  still sets every POI's);
+- ``capture_radius`` (default 0: ``[domain] d_cap``), world units, at least ``d_min``;
+- ``after``, the indices of earlier POIs that must have been captured at an *earlier* step
+  before this one counts (an ordered chain takes a step per link). Scoring applies it to
+  the team and to every counterfactual of D alike: without rover i, POI k counts only after
+  its predecessors were captured without rover i;
+- ``score_at``: ``"any"`` (Eq. 11's max over the scored steps: the paper's, and the lab's
+  ``sequential`` constraint) or ``"final"`` (only the last scored state counts: the lab's
+  ``final`` constraint).
+
+The scenario still places the POIs; ``poi_values`` is derived from the tables (values may
+repeat there). The compiled scoring is :func:`physrover.domain.kernels.score_team`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import ClassVar
+
+from physrover.config.base import ConfigBase, ConfigError, check, check_choice
+
+SCORE_AT = ("any", "final")
+
+
+@dataclasses.dataclass(frozen=True)
+class PoiRule(ConfigBase):
+    """One ``[[pois]]`` table (module docstring)."""
+
+    section: ClassVar[str] = "pois"
+
+    value: float = 1.0
+    """V_k, the POI's value in G (Eq. 11)."""
+    n_req: int = 0
+    """Agents needed within the capture radius at one step (Eq. 12); 0: [domain] n_req."""
+    capture_radius: float = 0.0
+    """World units (Eq. 13); 0: [domain] d_cap."""
+    after: tuple[int, ...] = ()
+    """Indices of earlier POIs captured at an earlier step before this one counts."""
+    score_at: str = "any"
+    """"any" scored step (Eq. 11) or only the "final" one."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        check(self.value > 0 and self.value != float("inf"), "value",
+              f"must be positive and finite, got {self.value}")  # fmt: skip
+        check(self.n_req >= 0, "n_req", f"must be >= 1 (0: [domain] n_req), got {self.n_req}")
+        radius = self.capture_radius
+        check(0 <= radius < float("inf"), "capture_radius",
+              f"must be >= d_min (0: d_cap), got {radius}")  # fmt: skip
+        check_choice(self.score_at, SCORE_AT, "score_at")
+
+
+def coerce_pois(value) -> tuple[PoiRule, ...]:
+    """``[[pois]]`` as PoiRules: a list of tables or of PoiRule; errors name ``pois[k]``."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (list, tuple)):
+        raise ConfigError("pois", f"expected a list of [[pois]] tables, got {value!r}")
+    rules = []
+    for k, item in enumerate(value):
+        try:
+            if isinstance(item, Mapping):
+                item = PoiRule.from_dict(item)
+            check(isinstance(item, PoiRule), "", f"expected a table, got {item!r}")
+        except ConfigError as exc:
+            raise ConfigError(f"pois[{k}].{exc.field}".rstrip("."), exc.message) from None
+        rules.append(item)
+    return tuple(rules)
+
+
+def check_pois(domain) -> None:
+    """The rules that need the rest of the domain: couplings within the team, radii at least
+    d_min, ``after`` naming earlier POIs that can be captured before the end."""
+    pois = domain.pois
+    check(not isinstance(domain.n_req, tuple), "n_req",
+          "give each POI's coupling in its [[pois]] table, not as a list")  # fmt: skip
+    for k, rule in enumerate(pois):
+        n_req = rule.n_req or domain.n_req
+        check(1 <= n_req <= domain.n_rovers, f"pois[{k}].n_req",
+              f"must be in [1, n_rovers={domain.n_rovers}], got {n_req}")  # fmt: skip
+        radius = rule.capture_radius
+        check(radius == 0 or radius >= domain.d_min, f"pois[{k}].capture_radius",
+              f"must be >= d_min ({domain.d_min}) or 0 (d_cap), got {radius}")  # fmt: skip
+        for j in rule.after:
+            check(0 <= j < k, f"pois[{k}].after",
+                  f"must list earlier POIs (indices < {k}), got {list(rule.after)}")  # fmt: skip
+            final = f"POI {j} is scored at the final state only, so POI {k} could never count"
+            check(pois[j].score_at == "any", f"pois[{k}].after", final)
+
+
+def pois_table(pois: tuple[PoiRule, ...]) -> list[dict]:
+    """The ``[[pois]]`` tables of ``pois``, as TOML writes them."""
+    return [rule.to_dict() for rule in pois]
+
+
+__all__ = ["SCORE_AT", "PoiRule", "check_pois", "coerce_pois", "pois_table"]

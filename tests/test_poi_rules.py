@@ -1,0 +1,250 @@
+"""POIs with rules ([[pois]], issue 33): config, hand-worked scores, a plain-loop oracle."""
+
+import numpy as np
+import pytest
+from oracles import score_rules_loops
+
+from physrover.config import ConfigError, DomainConfig, RunConfig
+from physrover.domain.credit import CREDITS
+from physrover.domain.kernels import score
+from physrover.domain.world import RoverWorld, StartOverrides
+
+LAB_TOML = """
+[domain]
+n_req = 2
+
+[[pois]]
+value = 1.0
+
+[[pois]]                  # counts only once POI 0 was captured at an earlier step
+value = 2.0
+after = [0]
+
+[[pois]]                  # its own radius and coupling
+value = 2.0
+capture_radius = 2.5
+n_req = 1
+
+[[pois]]                  # the lab's "final" constraint: only the last scored state counts
+value = 4.0
+score_at = "final"
+"""
+
+
+def test_pois_tables_round_trip_and_derive_values():
+    config = RunConfig.from_toml(LAB_TOML)
+    d = config.domain
+    assert d.poi_values == (1.0, 2.0, 2.0, 4.0)  # derived, and may repeat
+    assert d.n_req_per_poi == (2, 2, 1, 2)
+    assert RunConfig.from_toml(config.to_toml()) == config
+    assert "[[pois]]" in config.to_toml() and "poi_values" not in config.to_toml()
+    assert config.with_overrides({"n_req": 3}).domain.n_req_per_poi == (3, 3, 1, 3)
+    # without [[pois]] the config's TOML is what it was
+    assert "pois" not in DomainConfig().to_toml()
+
+
+@pytest.mark.parametrize(
+    ("toml", "message"),
+    [
+        ("[[pois]]\nafter = [0]", "pois[0].after: must list earlier POIs (indices < 0)"),
+        ("[[pois]]\nvalue = -1", "pois[0].value: must be positive and finite, got -1.0"),
+        ("[[pois]]\ncapture_radius = 0.5", "pois[0].capture_radius: must be >= d_min (1.0)"),
+        ("[[pois]]\nn_req = 16", "pois[0].n_req: must be in [1, n_rovers=15], got 16"),
+        ('[[pois]]\nscore_at = "fnal"', "(did you mean 'final'?)"),
+        ("[[pois]]\nvalu = 1", "pois[0].valu: unknown PoiRule field (did you mean 'value'?)"),
+        ("[domain]\npoi_values = [1.0]\n[[pois]]", "poi_values: give the POIs as [[pois]] or"),
+        (
+            '[[pois]]\nscore_at = "final"\n[[pois]]\nafter = [0]',
+            "pois[1].after: POI 0 is scored at the final state only",
+        ),  # fmt: skip
+        ("[domain]\nn_req = [1, 2]\n[[pois]]\n[[pois]]", "n_req: give each POI's coupling"),
+        ("pois = 3", "pois: expected a list of [[pois]] tables"),
+    ],
+)
+def test_bad_pois_tables_name_the_field(toml, message):
+    with pytest.raises(ConfigError) as info:
+        RunConfig.from_toml(toml)
+    assert message in str(info.value)
+
+
+def test_pois_cannot_be_set_from_the_command_line():
+    config = RunConfig.from_toml(LAB_TOML)
+    for name in ("pois", "poi_values"):
+        with pytest.raises(ConfigError, match=r"set \[\[pois\]\] tables in a TOML file"):
+            config.with_overrides({name: [1.0]})
+
+
+# -- hand-worked scores: positions set step by step, scored by the compiled kernel ------------
+
+
+def _scored(pois, paths, poi_positions, n_rovers=None, steps=4, **domain):
+    """Score hand-made paths: ``paths[t]`` the (R, 2) positions at step t. Returns the world
+    after scoring steps 0 .. len(paths) - 1 (G, D, capture_step)."""
+    n_rovers = n_rovers or len(paths[0])
+    config = DomainConfig(n_rovers=n_rovers, steps=steps, pois=pois, n_req=1, **domain)
+    world = RoverWorld(config, 1)
+    world.reset([np.random.default_rng(0)], StartOverrides(
+        rover_positions=paths[0], rover_headings=np.zeros(n_rovers),
+        poi_positions=poi_positions))  # fmt: skip
+    for t, positions in enumerate(paths[1:], start=1):
+        world.state.rover_positions[0] = positions
+        score(world.state, config.d_cap, world.n_req, t, world.poi_rules)
+    return world
+
+
+FAR = (50.0, 50.0)
+CHAIN = [{"value": 1.0}, {"value": 2.0, "after": [0]}]
+CHAIN_POIS = [(0.0, 0.0), (20.0, 0.0)]
+
+
+def test_a_chain_needs_its_predecessor_at_an_earlier_step():
+    # rover 0 reaches POI 0 at step 2; rover 1 is at POI 1 at step 2 only: same step, no
+    at_2 = [[FAR, FAR], [FAR, FAR], [(0.0, 0.0), (20.0, 0.0)], [(0.0, 0.0), FAR]]
+    world = _scored(CHAIN, at_2, CHAIN_POIS)
+    assert world.G[0] == 1.0
+    assert list(world.state.capture_step[0]) == [2, -1]
+    # rover 1 stays at POI 1 one step more: captured at step 3
+    at_3 = [*at_2[:3], [(0.0, 0.0), (20.0, 0.0)]]
+    world = _scored(CHAIN, at_3, CHAIN_POIS)
+    assert world.G[0] == 3.0
+    assert list(world.state.capture_step[0]) == [2, 3]
+    # the paper's POIs (no rule) would have counted POI 1 at step 2
+    paper = _scored([{"value": 1.0}, {"value": 2.0}], at_2, CHAIN_POIS)
+    assert paper.G[0] == 3.0
+
+
+def test_difference_applies_the_order_to_each_counterfactual():
+    # rover 0 captures POI 0 at step 1, rover 1 POI 1 at step 2: G = 3. Without rover 0,
+    # POI 0 is never captured, so POI 1 never counts: D_0 = 3; without rover 1, D_1 = 2.
+    paths = [[FAR, FAR], [(0.0, 0.0), FAR], [FAR, (20.0, 0.0)]]
+    world = _scored(CHAIN, paths, CHAIN_POIS)
+    assert world.G[0] == 3.0
+    assert list(world.D[0]) == [3.0, 2.0]
+    assert list(world.poi_rules.step_without[0, 1]) == [1, -1]  # without rover 1: POI 0 at 1
+
+
+def test_final_pois_count_only_at_the_last_scored_state():
+    pois = [{"value": 4.0, "score_at": "final"}]
+    early = [[(0.0, 0.0)], [(0.0, 0.0)], [FAR], [FAR], [FAR]]  # steps 0..4, steps = 4
+    assert _scored(pois, early, [(0.0, 0.0)]).G[0] == 0.0
+    late = [[FAR], [FAR], [FAR], [FAR], [(0.0, 0.0)]]
+    assert _scored(pois, late, [(0.0, 0.0)]).G[0] == 4.0
+    # under "before-steps" the last scored state is steps - 1 = 3
+    w = _scored(pois, late[:4] + [[(0.0, 0.0)]], [(0.0, 0.0)], scored_states="before-steps")
+    assert w.poi_rules.t_final == 3 and w.G[0] == 0.0
+    w = _scored(pois, [[FAR], [FAR], [FAR], [(0.0, 0.0)]], [(0.0, 0.0)],
+                scored_states="before-steps")  # fmt: skip
+    assert w.G[0] == 4.0
+
+
+def test_each_poi_has_its_own_capture_radius():
+    pois = [{"value": 1.0, "capture_radius": 2.5}, {"value": 2.0}]  # the second: d_cap = 4
+    world = _scored(pois, [[(3.0, 0.0)]], [(0.0, 0.0), (6.0, 0.0)])
+    assert world.G[0] == 2.0  # 3 > 2.5 from POI 0, 3 <= 4 from POI 1
+    assert world.state.in_range[0, 0, 0].tolist() == [False, True]
+    assert _scored(pois, [[(2.5, 0.0)]], [(0.0, 0.0), (6.0, 0.0)]).G[0] == 3.0  # on the edge
+
+
+# -- random episodes: the compiled scores against the plain-loop oracle ---------------------
+
+
+@pytest.mark.parametrize("motion", ["ideal", "physics"])
+@pytest.mark.parametrize("seed", range(6))
+def test_random_episodes_score_as_the_oracle(seed, motion):
+    rng = np.random.default_rng(seed)
+    n_pois, n_rovers = 5, 6
+    pois = []
+    for k in range(n_pois):
+        earlier = [j for j in range(k) if rng.random() < 0.4]
+        final = rng.random() < 0.2
+        pois.append({"value": float(rng.integers(1, 4)), "n_req": int(rng.integers(1, 3)),
+                     "capture_radius": float(rng.choice([0.0, 2.0, 6.0])),
+                     "after": earlier, "score_at": "final" if final else "any"})  # fmt: skip
+    for k in range(n_pois):  # a rule may not wait for a final POI
+        pois[k]["after"] = [j for j in pois[k]["after"] if pois[j]["score_at"] == "any"]
+    scored_states = ["all", "before-steps"][seed % 2]
+    config = DomainConfig(n_rovers=n_rovers, steps=25, pois=pois, motion=motion,
+                          scored_states=scored_states, scenario={"kind": "uniform",
+                          "half_size": 6.0, "min_separation": 1.0})  # fmt: skip
+    world = RoverWorld(config, 4)
+    world.reset([np.random.default_rng([seed, e]) for e in range(4)])
+    for _ in range(config.steps):
+        world.step(rng.uniform(-1, 1, (4, n_rovers, 2)))
+    radius = [p["capture_radius"] or config.d_cap for p in pois]
+    after = [p["after"] for p in pois]
+    final = [p["score_at"] == "final" for p in pois]
+    last = config.steps if scored_states == "all" else config.steps - 1
+    steps = list(range(last + 1))
+    captures = 0
+    for e in range(4):
+        args = (world.position_history[:, e].tolist(), world.poi_positions[e].tolist(),
+                world.poi_values[e].tolist(), radius, config.n_req_per_poi, after, final,
+                steps)  # fmt: skip
+        G, first = score_rules_loops(*args)
+        assert world.G[e] == G
+        assert world.state.capture_step[e].tolist() == first
+        for i in range(n_rovers):
+            assert world.D[e, i] == G - score_rules_loops(*args, removed=i)[0]
+        captures += sum(f >= 0 for f in first)
+    assert captures > 0  # the layouts are tight enough that the rules are exercised
+
+
+def test_rules_that_mirror_the_paper_give_the_paper_episode():
+    """[[pois]] with the paper's values and no rule: the rules' path (a step loop) equals
+    the paper's fused step bit for bit (the generalised kernel reduces to Eqs. 11-13)."""
+    paper = DomainConfig(n_req=2)
+    mirror = DomainConfig(n_req=2, pois=[{"value": v} for v in paper.poi_values])
+    worlds = [RoverWorld(c, 3) for c in (paper, mirror)]
+    assert worlds[0].fused and not worlds[1].fused
+    rng = np.random.default_rng(7)
+    actions = rng.uniform(-1, 1, (paper.steps, 3, paper.n_rovers, 2))
+    for w in worlds:
+        w.reset([np.random.default_rng(e) for e in range(3)])
+        for a in actions:
+            w.step(a)
+    a, b = worlds
+    np.testing.assert_array_equal(a.observations, b.observations)
+    np.testing.assert_array_equal(a.position_history, b.position_history)
+    np.testing.assert_array_equal(a.state.in_range, b.state.in_range)
+    np.testing.assert_array_equal(a.G, b.G)
+    np.testing.assert_array_equal(a.D, b.D)
+    assert a.G.max() > 0 or a.state.in_range.any()
+
+
+def test_d_plus_plus_refuses_ordered_and_final_pois():
+    ordered = DomainConfig(pois=CHAIN)
+    with pytest.raises(ConfigError, match="D\\+\\+ is not defined for POIs with after"):
+        CREDITS["D++"].check(ordered)
+    CREDITS["D++"].check(DomainConfig(pois=[{"value": 1.0, "capture_radius": 2.0}]))
+    with pytest.raises(ConfigError, match="feedback: D\\+\\+ is not defined"):
+        RunConfig.from_toml('[learn]\nfeedback = "D++"\n[[pois]]\nscore_at = "final"')
+
+
+def test_a_sweep_takes_pois_in_its_base_and_grids_n_req(tmp_path):
+    from physrover.experiment.sweep import Sweep
+
+    path = tmp_path / "s.toml"
+    path.write_text('[sweep]\nname = "ruled"\nseeds = 1\n[grid]\nn_req = [1, 2]\n'
+                    '[[base.pois]]\nvalue = 1.0\n[[base.pois]]\nvalue = 2.0\nafter = [0]\n'
+                    "n_req = 1\n")  # fmt: skip
+    sweep = Sweep.load(path)
+    configs = [sweep.base.with_overrides({"n_req": n}) for n in (1, 2)]
+    assert [c.domain.n_req_per_poi for c in configs] == [(1, 1), (2, 1)]
+    assert configs[1].domain.pois[1].after == (0,)
+
+
+def test_the_ccea_trains_on_ruled_pois_and_resumes_bit_identically(tmp_path):
+    """A short run of the paper's method on ordered POIs: the metrics are the world's G
+    (the rules' path, not the fused episode) and a resumed run equals an unbroken one."""
+    from conftest import assert_same_run
+
+    from physrover.experiment.training import train
+
+    config = RunConfig.from_toml(LAB_TOML).with_overrides(
+        {"n_rovers": 6, "population": 6, "method": "D", "checkpoint_every": 2}
+    )
+    full = train(config, tmp_path / "full", generations=5, progress=False)
+    part = train(config, tmp_path / "part", generations=3, progress=False)
+    train(None, part, resume=True, generations=5, progress=False)
+    assert_same_run(full, part)
+    assert "[[pois]]" in (full / "config.toml").read_text()
