@@ -26,6 +26,7 @@ import gymnasium
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
 from physrover.core import deprecation as _deprecation
+from physrover.domain import lidar as _lidar  # noqa: F401  (the lidar sensor)
 from physrover.domain import physics as _physics  # noqa: F401  (motion models)
 
 # Importing these registers the built-in parts under their names (physrover.core.registry).
