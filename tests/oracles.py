@@ -502,13 +502,14 @@ def select_team_elites_loops(elite_genomes, elite_fitness, elite_G, population, 
 
 
 def score_rules_loops(positions, poi_positions, poi_values, radius, n_req, after, final,
-                      scored_steps, removed=None):  # fmt: skip
+                      scored_steps, removed=None, counted=None):  # fmt: skip
     """G of one team's episode under POI rules, rescored from positions with plain loops.
 
     ``positions`` (T + 1, R, 2) at every step, ``poi_positions`` (K, 2), ``poi_values``
     (K,), per POI its ``radius``, coupling ``n_req``, predecessors ``after`` (lists of
     indices) and ``final`` (counts only at the last scored step); ``scored_steps`` the steps
-    that count, in order; rover ``removed`` left out of every count (D's counterfactual).
+    that count, in order; rover ``removed`` left out of every count (D's counterfactual),
+    or a set of (t, i) left out of step t's; only the agents ``counted`` (default all) count.
     Returns (G, first capture step per POI, -1 if none).
     """
     n_pois = len(poi_values)
@@ -521,10 +522,78 @@ def score_rules_loops(positions, poi_positions, poi_values, radius, n_req, after
             for i in range(len(positions[t])):
                 dx = poi_positions[k][0] - positions[t][i][0]
                 dy = poi_positions[k][1] - positions[t][i][1]
-                if i != removed and dx * dx + dy * dy <= radius[k] * radius[k]:  # Eq. 13
+                gone = (t, i) in removed if isinstance(removed, set) else i == removed
+                if counted is not None and not counted[i]:
+                    gone = True
+                if not gone and dx * dx + dy * dy <= radius[k] * radius[k]:  # Eq. 13
                     n += 1
             ready = all(0 <= first[j] < t for j in after[k])
             if n >= n_req[k] and ready:
                 first[k] = t
     G = sum(poi_values[k] for k in range(n_pois) if first[k] >= 0)
     return G, first
+
+
+# -- agent classes (issue 33, [[agents]]): one idealised step, as plain loops -------------------
+
+
+def classes_step(positions, headings, actions, classes, names):
+    """One step of agents in classes (``classes[i]``: agent i's AgentClass; ``names`` the
+    class names in order) from (R, 2) positions, (R,) headings and (R, 2) commands: the
+    gate judged on the positions before the step, then clip, speed, frame, bounds. Returns
+    new positions and headings (lists)."""
+    free = []
+    for i, own in enumerate(classes):
+        near = [j for j in range(len(classes)) if j != i and classes[j].name in own.moves_with
+                and math.dist(positions[i], positions[j]) <= own.moves_with_radius]  # fmt: skip
+        free.append(not own.moves_with or bool(near))
+    new_positions, new_headings = [], []
+    for i, own in enumerate(classes):
+        a = [min(max(float(v), -1.0), 1.0) * own.max_speed * free[i] for v in actions[i]]
+        if own.action == "world":
+            mx, my = a
+        else:
+            c, s = math.cos(headings[i]), math.sin(headings[i])
+            mx, my = c * a[0] - s * a[1], s * a[0] + c * a[1]
+        x, y = positions[i][0] + mx, positions[i][1] + my
+        if own.bounds:
+            x = min(max(x, own.bounds[0]), own.bounds[1])
+            y = min(max(y, own.bounds[2]), own.bounds[3])
+        new_positions.append((x, y))
+        new_headings.append(math.atan2(my, mx) if (mx, my) != (0.0, 0.0) else headings[i])
+    return new_positions, new_headings
+
+
+def indirect_difference_loops(positions, score_args, influence_radius, counted, timescale):
+    """ID (``timescale`` "trajectory") or ID-step ("step") of one team's agents by plain
+    loops: influence from the (T + 1, R, 2) ``positions`` at the scored steps, then each
+    agent's removal set rescored with :func:`score_rules_loops` (``score_args``: its
+    arguments after ``positions``)."""
+    steps = score_args[-1]
+    n = len(influence_radius)
+
+    def influences(t, u, k):
+        return (
+            u != k
+            and influence_radius[u] > 0
+            and counted[k]
+            and math.dist(positions[t][u], positions[t][k]) <= influence_radius[u]
+        )
+
+    G = score_rules_loops(positions, *score_args, counted=counted)[0]
+    credit = []
+    for a in range(n):
+        removed = {(t, a) for t in steps}
+        for k in range(n):
+            if timescale == "trajectory":
+                times = [sum(influences(t, u, k) for t in steps) for u in range(n)]
+                if max(times) > 0 and times.index(max(times)) == a:
+                    removed |= {(t, k) for t in steps}
+            else:
+                for t in steps:
+                    near = [u for u in range(n) if influences(t, u, k)]
+                    if near and near[0] == a:
+                        removed.add((t, k))
+        G_without = score_rules_loops(positions, *score_args, removed=removed, counted=counted)
+        credit.append(G - G_without[0])
+    return credit

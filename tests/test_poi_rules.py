@@ -70,7 +70,7 @@ def test_bad_pois_tables_name_the_field(toml, message):
 def test_pois_cannot_be_set_from_the_command_line():
     config = RunConfig.from_toml(LAB_TOML)
     for name in ("pois", "poi_values"):
-        with pytest.raises(ConfigError, match=r"set \[\[pois\]\] tables in a TOML file"):
+        with pytest.raises(ConfigError, match=r"set \[\[pois\]\] and \[\[agents\]\] tables"):
             config.with_overrides({name: [1.0]})
 
 

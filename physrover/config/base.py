@@ -162,6 +162,23 @@ class ConfigBase:
         return cls.from_dict(data.get(cls.section, {}))
 
 
+def coerce_tables(value: Any, cls: type, section: str, finish=None) -> tuple:
+    """A list of ``[[section]]`` tables (mappings or ``cls`` instances) as a tuple of
+    ``cls`` (each passed through ``finish`` if given); errors name ``section[i].field``."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (list, tuple)):
+        raise ConfigError(section, f"expected a list of [[{section}]] tables, got {value!r}")
+    items = []
+    for i, item in enumerate(value):
+        try:
+            if isinstance(item, Mapping):
+                item = cls.from_dict(item)
+            check(isinstance(item, cls), "", f"expected a table, got {item!r}")
+            items.append(finish(item) if finish is not None else item)
+        except ConfigError as exc:
+            raise ConfigError(f"{section}[{i}].{exc.field}".rstrip("."), exc.message) from None
+    return tuple(items)
+
+
 def check(ok: bool, field: str, message: str) -> None:
     """Raise :class:`ConfigError` naming ``field`` with ``message`` unless ``ok``."""
     if not ok:

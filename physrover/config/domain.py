@@ -32,7 +32,13 @@ from physrover.config.base import (
     dumps_toml,
     loads_toml,
 )
-from physrover.config.pois import check_pois, coerce_pois, pois_table
+from physrover.config.roles import (
+    ROLE_TABLES,
+    check_derived_not_given,
+    check_roles,
+    derive_roles,
+    role_tables,
+)
 from physrover.core.registry import DYNAMICS, SCENARIOS, SENSORS
 
 PER_ROVER = ("rover_radius", "rover_mass", "max_force", "max_torque", "max_speed")
@@ -189,6 +195,9 @@ class DomainConfig(ConfigBase):
     pois: Any = ()
     """``[[pois]]``: POIs with rules (:mod:`physrover.config.pois`), one table per POI; when
     given, ``poi_values`` is derived from them. Empty: the paper's POIs."""
+    agents: Any = ()
+    """``[[agents]]``: agent classes (:mod:`physrover.config.agents`), one table per class;
+    when given, ``n_rovers`` is the sum of their counts. Empty: the paper's rovers."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -198,10 +207,8 @@ class DomainConfig(ConfigBase):
             value = component(getattr(self, section), REGISTRIES[section], section,
                               DEFAULT_KINDS[section])  # fmt: skip
             object.__setattr__(self, section, value)
+        derive_roles(self, lambda table: component(table, SENSORS, "sensor", "density"))
         check(self.n_rovers >= 1, "n_rovers", f"must be >= 1, got {self.n_rovers}")
-        object.__setattr__(self, "pois", coerce_pois(self.pois))
-        if self.pois:
-            object.__setattr__(self, "poi_values", tuple(p.value for p in self.pois))
         check(len(self.poi_values) >= 1, "poi_values", "must list at least one POI value")
         for v in self.poi_values:
             check(
@@ -215,8 +222,7 @@ class DomainConfig(ConfigBase):
             f"values must be distinct, got {list(self.poi_values)}",
         )
         object.__setattr__(self, "n_req", self._coerced_n_req())
-        if self.pois:
-            check_pois(self)
+        check_roles(self)
         for n in self.n_req_per_poi:
             check(
                 1 <= n <= self.n_rovers,
@@ -277,17 +283,16 @@ class DomainConfig(ConfigBase):
     # -- flat names ------------------------------------------------------------------------
 
     def tables(self) -> dict[str, dict[str, Any]]:
-        """{section: table} of [domain], [physics], [scenario], [sensor] (and ``pois``, a
-        list of tables, if any), as in TOML."""
-        derived = ("pois", "poi_values") if self.pois else ("pois",)
-        own = {k: v for k, v in self.to_dict().items() if k not in (*COMPONENTS, *derived)}
-        pois = {"pois": pois_table(self.pois)} if self.pois else {}
+        """{section: table} of [domain], [physics], [scenario], [sensor] (and ``pois`` and
+        ``agents``, lists of tables, if any), as in TOML."""
+        dropped, lists = role_tables(self)
+        own = {k: v for k, v in self.to_dict().items() if k not in (*COMPONENTS, *dropped)}
         return {
             "domain": own,
             "physics": self.physics.to_dict(),
             "scenario": self.scenario.table(),
             "sensor": self.sensor.table(),
-            **pois,
+            **lists,
         }
 
     def flat_dict(self) -> dict[str, Any]:
@@ -344,8 +349,6 @@ class DomainConfig(ConfigBase):
         for section, values in fields.items():
             if values:
                 parts[section] = parts[section].replace(**values)
-        check("poi_values" not in own or not own.get("pois", self.pois), "poi_values",
-              "the POIs are [[pois]] tables: set each table's value")  # fmt: skip
         return DomainConfig(**{**self.to_dict(), **own, **parts})
 
     def _component(self, section: str, value: Any):
@@ -367,20 +370,19 @@ class DomainConfig(ConfigBase):
     @classmethod
     def from_toml(cls, text: str) -> DomainConfig:
         data = loads_toml(text)
-        unknown = sorted(set(data) - {"domain", *COMPONENTS, "pois"})
+        unknown = sorted(set(data) - {"domain", *COMPONENTS, *ROLE_TABLES})
         if unknown:
             raise ConfigError(unknown[0], "unknown TOML table (expected [domain], [physics], "
-                              "[scenario], [sensor] or [[pois]])")  # fmt: skip
+                              "[scenario], [sensor], [[pois]] or [[agents]])")  # fmt: skip
         return cls.from_tables(data)
 
     @classmethod
     def from_tables(cls, data: Mapping[str, Any]) -> DomainConfig:
-        """From the [domain], [physics], [scenario], [sensor] and [[pois]] tables of a TOML
-        file."""
+        """From the [domain], [physics], [scenario], [sensor], [[pois]] and [[agents]] tables
+        of a TOML file."""
         domain = dict(data.get("domain", {}))
-        if "pois" in data and "poi_values" in domain:
-            raise ConfigError("poi_values", "give the POIs as [[pois]] or as poi_values, not both")
-        for section in (*COMPONENTS, "pois"):
+        check_derived_not_given(domain, data)
+        for section in (*COMPONENTS, *ROLE_TABLES):
             if section in domain and section in data:
                 raise ConfigError(f"domain.{section}", f"given in [domain] and as [{section}]")
             if section in data:

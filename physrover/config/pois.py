@@ -24,10 +24,9 @@ repeat there). The compiled scoring is :func:`physrover.domain.kernels.score_tea
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
 from typing import ClassVar
 
-from physrover.config.base import ConfigBase, ConfigError, check, check_choice
+from physrover.config.base import ConfigBase, check, check_choice, coerce_tables
 
 SCORE_AT = ("any", "final")
 
@@ -62,18 +61,7 @@ class PoiRule(ConfigBase):
 
 def coerce_pois(value) -> tuple[PoiRule, ...]:
     """``[[pois]]`` as PoiRules: a list of tables or of PoiRule; errors name ``pois[k]``."""
-    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (list, tuple)):
-        raise ConfigError("pois", f"expected a list of [[pois]] tables, got {value!r}")
-    rules = []
-    for k, item in enumerate(value):
-        try:
-            if isinstance(item, Mapping):
-                item = PoiRule.from_dict(item)
-            check(isinstance(item, PoiRule), "", f"expected a table, got {item!r}")
-        except ConfigError as exc:
-            raise ConfigError(f"pois[{k}].{exc.field}".rstrip("."), exc.message) from None
-        rules.append(item)
-    return tuple(rules)
+    return coerce_tables(value, PoiRule, "pois")
 
 
 def check_pois(domain) -> None:

@@ -18,6 +18,7 @@ from physrover.config.base import (
 )
 from physrover.config.domain import COMPONENTS, REGISTRIES, DomainConfig
 from physrover.config.learn import LearnConfig
+from physrover.config.roles import ROLE_TABLES, check_not_overridden
 from physrover.core.registry import CREDITS, TRAINERS
 
 SHARED_WITH_LEARN = ("seed", "hidden", "eval_episodes", "checkpoint_every")
@@ -41,6 +42,8 @@ class RunConfig:
             raise ConfigError("domain", "must be a DomainConfig")
         if not isinstance(self.learn, LearnConfig):
             raise ConfigError("learn", "must be a LearnConfig")
+        check(not self.domain.agents, "agents", "training agent classes comes in a later "
+              "release (issue 33); physrover.domain.world.RoverWorld steps them today")  # fmt: skip
         credit = CREDITS[self.learn.feedback] if self.learn.feedback in CREDITS else None
         getattr(credit, "check", lambda domain: None)(self.domain)  # defined for the domain?
         spec = TRAINERS[self.learn.method] if self.learn.method in TRAINERS else None
@@ -96,9 +99,9 @@ class RunConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
         sections = {spec.config.section: name for name, spec in TRAINERS.items()}
-        unknown = sorted(set(data) - {"domain", *COMPONENTS, "pois", "learn", *sections})
+        unknown = sorted(set(data) - {"domain", *COMPONENTS, *ROLE_TABLES, "learn", *sections})
         if unknown:
-            known = ", ".join(["domain", *COMPONENTS, "pois", "learn", *sections])
+            known = ", ".join(["domain", *COMPONENTS, *ROLE_TABLES, "learn", *sections])
             raise ConfigError(unknown[0], f"unknown TOML table (known: {known}; a trainer of "
                               "your own registers its table when its module is imported, e.g. "
                               "physrover --import my_parts.py)")  # fmt: skip
@@ -139,9 +142,7 @@ class RunConfig:
                 domain_names |= set(registry[kind].field_names())
         for name, value in overrides.items():
             table, _, field = name.rpartition(".")
-            if name == "pois" or (name == "poi_values" and self.domain.pois):
-                raise ConfigError(name, "set [[pois]] tables in a TOML file (a sweep's: "
-                                  "[[base.pois]])")  # fmt: skip
+            check_not_overridden(self.domain, name)
             if table in ("domain", *COMPONENTS):
                 domain[name] = value
             elif table == "learn":

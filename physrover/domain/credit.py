@@ -8,7 +8,9 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
   (rover i's whole trajectory removed), from the world's running records;
 - ``"G"``: the team score G for every rover of the team;
 - ``"D++"``: D with counterfactual partners (:func:`physrover.domain.scoring.d_plus_plus`),
-  which credits a rover that would have completed a coupling with partners.
+  which credits a rover that would have completed a coupling with partners;
+- ``"ID"``, ``"ID-step"``: IndirectDifference (:mod:`physrover.domain.influence`), which
+  credits an agent (a UAV) with the captures of the agents it was near.
 
 A new signal is a :class:`Credit` subclass (a ``__call__(world) -> (E, R)``) and one
 :func:`register_credit` call, from any module; its name then works in TOML and
@@ -24,6 +26,7 @@ import numpy as np
 
 from physrover.config import check
 from physrover.core.registry import CREDITS
+from physrover.domain.influence import indirect_difference
 from physrover.domain.scoring import d_plus_plus
 
 
@@ -69,6 +72,17 @@ class DPlusPlus(Credit):
               '"final" ([[pois]])')  # fmt: skip
 
 
+class IndirectDifference(Credit):
+    """IndirectDifference (:mod:`physrover.domain.influence`) over a ``timescale``:
+    "trajectory" (``ID``) or "step" (``ID-step``)."""
+
+    def __init__(self, timescale: str):
+        self.timescale = timescale
+
+    def __call__(self, world) -> np.ndarray:
+        return indirect_difference(world, self.timescale)
+
+
 def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Credit:
     """Make ``credit`` the signal named ``name`` (``[learn] feedback = "NAME"``)."""
     if not isinstance(credit, Credit):
@@ -79,3 +93,5 @@ def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Cred
 register_credit("D", Difference())
 register_credit("G", TeamScore())
 register_credit("D++", DPlusPlus())
+register_credit("ID", IndirectDifference("trajectory"))
+register_credit("ID-step", IndirectDifference("step"))

@@ -25,6 +25,7 @@ import numpy as np
 
 from physrover.core.registry import DYNAMICS
 from physrover.domain.kernels import Fused, heading_trig, move
+from physrover.domain.roles import Roles
 
 
 class Dynamics:
@@ -66,5 +67,9 @@ class Ideal(Fused, Dynamics, fused=True):
 
     name: ClassVar[str] = "ideal"
 
+    def __init__(self, config, n_teams: int):
+        super().__init__(config, n_teams)
+        self.roles = Roles.build(config)  # agent classes' speeds, frames, gates, bounds
+
     def step(self, state, actions: np.ndarray) -> None:
-        move(actions, state, np.empty(actions.shape, dtype=np.float32))
+        move(actions, state, np.empty(actions.shape, dtype=np.float32), self.roles)

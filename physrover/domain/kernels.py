@@ -100,6 +100,8 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None):
             dx = px - positions[e, i, 0]
             dy = py - positions[e, i, 1]
             inside = dx * dx + dy * dy <= radius_sq  # Eq. 13
+            if rules is not None:
+                inside = inside and rules.counted[i]
             near[i, k] = inside
             n += np.int64(inside)
         count[k] = n
@@ -121,7 +123,7 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None):
 
 
 @jit
-def _predecessors_before(after_k, first_steps, t):
+def predecessors_before(after_k, first_steps, t):
     """Whether every POI j with ``after_k[j]`` was first captured (``first_steps[j]``, -1:
     never) at a step before ``t``."""
     for j in range(after_k.shape[0]):
@@ -138,13 +140,13 @@ def _score_rules(e, k, state, rules, n_req, t):
         return
     count, near = state.poi_counts[e, k], state.in_range[t, e]
     if count >= n_req[k] and not state.captured[e, k]:
-        if _predecessors_before(rules.after[k], state.capture_step[e], t):
+        if predecessors_before(rules.after[k], state.capture_step[e], t):
             state.capture_step[e, k] = t
             state.captured[e, k] = True
     for i in range(near.shape[0]):
         if state.captured_without[e, i, k] or count - np.int64(near[i, k]) < n_req[k]:
             continue
-        if _predecessors_before(rules.after[k], rules.step_without[e, i], t):
+        if predecessors_before(rules.after[k], rules.step_without[e, i], t):
             state.captured_without[e, i, k] = True
             rules.step_without[e, i, k] = t
 
@@ -165,20 +167,37 @@ def _clip(x):
 
 
 @jit
-def move_team(e, commands, state, actions, headings=True):
+def move_team(e, commands, state, actions, headings=True, roles=None):
     """Move the rovers of team ``e`` by their clipped ``commands`` (recorded in ``actions``):
     positions, headings (NaN unless ``headings``, see :func:`_move`) and their cosines and
-    sines in ``state``."""
+    sines in ``state``. ``roles``: agent classes' gates, speeds, frames and bounds
+    (:class:`~physrover.domain.roles.Roles`; None, the paper's rovers, compiles them away)."""
     positions, angles = state.rover_positions, state.rover_headings
     cos_h, sin_h = state.cos_h, state.sin_h
+    if roles is not None:
+        free = _gate_free(e, positions, roles)
     for i in range(angles.shape[1]):
         fwd = _clip(commands[e, i, 0])
         left = _clip(commands[e, i, 1])
         actions[e, i, 0] = fwd
         actions[e, i, 1] = left
-        mx, my, heading = _move(cos_h[e, i], sin_h[e, i], angles[e, i], fwd, left, headings)
-        positions[e, i, 0] += mx
-        positions[e, i, 1] += my
+        if roles is not None:
+            scale = roles.speed[i] if free[i] else 0.0
+            fwd, left = fwd * scale, left * scale
+            if roles.world_frame[i]:  # (x, y) as given: the turn to cos 1, sin 0 is none
+                mx, my, heading = _move(1.0, 0.0, angles[e, i], fwd, left, headings)
+            else:
+                mx, my, heading = _move(cos_h[e, i], sin_h[e, i], angles[e, i], fwd, left,
+                                        headings)  # fmt: skip
+            x_min, x_max = roles.bounds[i, 0], roles.bounds[i, 1]
+            y_min, y_max = roles.bounds[i, 2], roles.bounds[i, 3]
+            positions[e, i, 0] = min(max(positions[e, i, 0] + mx, x_min), x_max)
+            positions[e, i, 1] = min(max(positions[e, i, 1] + my, y_min), y_max)
+        else:
+            mx, my, heading = _move(cos_h[e, i], sin_h[e, i], angles[e, i], fwd, left,
+                                    headings)  # fmt: skip
+            positions[e, i, 0] += mx
+            positions[e, i, 1] += my
         angles[e, i] = heading
         # The new heading's cosine and sine: the move's direction (the module docstring).
         norm = math.sqrt(mx * mx + my * my)
@@ -192,6 +211,26 @@ def move_team(e, commands, state, actions, headings=True):
 
 
 @jit
+def _gate_free(e, positions, roles):
+    """(R,) bool: whether each agent of team e may move this step, from the positions
+    before anyone moves (:mod:`physrover.domain.roles`, step 1)."""
+    n = positions.shape[1]
+    free = np.ones(n, dtype=np.bool_)
+    for i in range(n):
+        if not roles.gate[i].any():
+            continue
+        free[i] = False
+        for j in range(n):
+            if j != i and roles.gate[i, roles.agent_class[j]]:
+                dx = positions[e, j, 0] - positions[e, i, 0]
+                dy = positions[e, j, 1] - positions[e, i, 1]
+                if dx * dx + dy * dy <= roles.gate_radius_sq[i]:
+                    free[i] = True
+                    break
+    return free
+
+
+@jit
 def _any_nan(commands):
     for e in range(commands.shape[0]):
         for i in range(commands.shape[1]):
@@ -201,15 +240,15 @@ def _any_nan(commands):
 
 
 @jit
-def move(commands, state, actions):
+def move(commands, state, actions, roles=None):
     """The idealised motion of every rover under (E, R, 2) ``commands`` (float32 or float64,
     as given): returns False, having changed nothing, if a command is NaN; otherwise clips
     them to [-1, 1] (in float64, as ``np.clip``), records them in ``actions`` (E, R, 2) and
-    moves the rovers in ``state`` (:func:`_move`)."""
+    moves the rovers in ``state`` (:func:`_move`; ``roles``: :func:`move_team`'s)."""
     if _any_nan(commands):
         return False
     for e in range(commands.shape[0]):
-        move_team(e, commands, state, actions)
+        move_team(e, commands, state, actions, True, roles)
     return True
 
 

@@ -1,4 +1,5 @@
-"""POI rules as the compiled scoring reads them (``[[pois]]``, :mod:`physrover.config.pois`).
+"""POI rules as the compiled scoring reads them (``[[pois]]``, :mod:`physrover.config.pois`,
+and which agent classes count, ``[[agents]]``).
 
 :class:`PoiRules` holds the rules of a domain's K POIs as arrays, with the one piece of
 episode state they need, and :func:`physrover.domain.kernels.score_team` takes it as its
@@ -38,23 +39,30 @@ class PoiRules(NamedTuple):
     step_without: np.ndarray
     """(E, R, K) int64: the first step POI k was captured without rover i, -1 if none yet
     (episode state: reset by :meth:`start`)."""
+    counted: np.ndarray
+    """(R,) bool: the agents that count toward couplings (their class ``captures``); the
+    others are never in range (``in_range`` False), so their D is 0."""
 
     @classmethod
     def build(cls, config, n_teams: int) -> PoiRules | None:
         """The rules of ``config`` (a :class:`~physrover.config.DomainConfig`) for
-        ``n_teams`` teams, or None without ``[[pois]]`` (the paper's POIs)."""
-        pois = config.pois
-        if not pois:
+        ``n_teams`` teams, or None without ``[[pois]]`` and ``[[agents]]`` (the paper's
+        POIs and rovers)."""
+        if not (config.pois or config.agents):
             return None
-        k = len(pois)
-        radius = np.array([p.capture_radius or config.d_cap for p in pois], dtype=np.float64)
+        k = config.n_pois
+        pois = config.pois or [None] * k
+        radius = np.array([p.capture_radius if p and p.capture_radius else config.d_cap
+                           for p in pois], dtype=np.float64)  # fmt: skip
         after = np.zeros((k, k), dtype=bool)
         for i, p in enumerate(pois):
-            after[i, list(p.after)] = True
-        final = np.array([p.score_at == "final" for p in pois], dtype=bool)
+            after[i, list(p.after if p else ())] = True
+        final = np.array([bool(p) and p.score_at == "final" for p in pois], dtype=bool)
         t_final = config.steps if config.scored_states == "all" else config.steps - 1
         without = np.full((n_teams, config.n_rovers, k), -1, dtype=np.int64)
-        return cls(radius * radius, after, final, int(t_final), without)
+        counted = np.repeat([c.captures for c in config.agents] or [True],
+                            [c.count for c in config.agents] or [config.n_rovers])  # fmt: skip
+        return cls(radius * radius, after, final, int(t_final), without, counted.astype(bool))
 
     def start(self) -> None:
         """Forget the counterfactual captures: the start of an episode."""

@@ -39,6 +39,7 @@ from physrover.config import DomainConfig
 from physrover.core.registry import DYNAMICS
 from physrover.domain.kernels import ideal_step_flat, score
 from physrover.domain.poi_rules import PoiRules
+from physrover.domain.roles import class_rows
 from physrover.domain.scenarios import StartState
 from physrover.domain.scoring import difference, start_episode
 from physrover.domain.state import WorldState
@@ -126,7 +127,13 @@ class RoverWorld:
         self.n_rovers = config.n_rovers
         self.n_pois = config.n_pois
         self.sensor = config.sensor
-        self.obs_dim = int(self.sensor.dim)
+        rows = class_rows(config) if config.agents else []
+        self.class_sensors = [(r, c.sensor or config.sensor)
+                              for r, c in zip(rows, config.agents, strict=True)]  # fmt: skip
+        """With ``[[agents]]``: (rows of the class, its sensor) per class, in order."""
+        dims = [sensor.dim for _, sensor in self.class_sensors] or [self.sensor.dim]
+        self.obs_dim = int(max(dims))
+        """Observations per agent: the largest class's (a smaller class's are zero-padded)."""
         self.dynamics = DYNAMICS[config.motion](config, self.n_teams)
         obstacles = config.scenario.obstacle_capsules()
         self.state = WorldState.zeros(
@@ -256,7 +263,10 @@ class RoverWorld:
         """Sense and score the current state (step ``t``) and record it."""
         cfg, t = self.config, self.t
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
-        self.sensor.observe(self.state, cfg.d_min, obs)
+        if self.class_sensors:
+            self._observe_classes(obs)
+        else:
+            self.sensor.observe(self.state, cfg.d_min, obs)
         if self._scored(t):
             score(self.state, cfg.d_cap, self.n_req, t, self.poi_rules)
         self.position_history[t] = self.state.rover_positions
@@ -264,6 +274,15 @@ class RoverWorld:
         if t < cfg.steps:
             self.observations[t] = obs
         return obs
+
+    def _observe_classes(self, obs: np.ndarray) -> None:
+        """Each class's observations through its own sensor, in its rows' first columns;
+        the columns past a class's size are 0."""
+        obs[:] = 0.0
+        for rows, sensor in self.class_sensors:
+            scratch = np.empty((self.n_teams, self.n_rovers, sensor.dim), dtype=np.float32)
+            sensor.observe(self.state, self.config.d_min, scratch)
+            obs[:, rows, : sensor.dim] = scratch[:, rows]
 
     @property
     def fused(self) -> bool:

@@ -60,6 +60,8 @@ def _schema_field(field: dataclasses.Field) -> tuple[str, Any, dataclasses.Field
             default_factory=lambda: list(default))  # fmt: skip
     if annotation in (int, float, str, bool):
         return field.name, annotation, dataclasses.field(default=field.default)
+    if isinstance(field.default, tuple):  # [[pois]], [[agents]]: lists of tables
+        return field.name, Any, dataclasses.field(default_factory=list)
     return field.name, Any, dataclasses.field(default=field.default)
 
 

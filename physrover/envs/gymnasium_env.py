@@ -44,6 +44,9 @@ def team_spaces(config: DomainConfig) -> tuple[spaces.Box, spaces.Box]:
 
     The observations are bounded below by 0, as the built-in sensor's densities; a sensor
     with other bounds sets ``low`` and ``high`` attributes (scalars)."""
+    if config.agents:
+        raise ValueError("agents: the envs take agent classes in a later release (issue 33); "
+                         "physrover.domain.world.RoverWorld steps them today")  # fmt: skip
     shape = (config.n_rovers,)
     low, high = getattr(config.sensor, "low", 0.0), getattr(config.sensor, "high", np.inf)
     observation = spaces.Box(low, high, shape=(*shape, config.sensor.dim), dtype=np.float32)

@@ -1,0 +1,152 @@
+"""Agent classes (``[[agents]]`` tables): a team as a list of classes, as the paper's lab's
+later domains have it (rovers and UAVs, AADILab/influence-shaping).
+
+Without ``[[agents]]`` a team is the paper's: ``n_rovers`` identical rovers with the
+``[sensor]``. With them, each table is one class, its agents contiguous in the team in
+table order (the lab: all rovers, then all UAVs), and ``n_rovers`` is the sum of the
+counts. A class sets:
+
+- ``name`` (``[a-z][a-z0-9_]*``, unique) and ``count``;
+- ``captures``: whether its agents count toward a POI's coupling (the lab's rovers do, its
+  UAVs do not; an agent that does not count has D = 0);
+- ``action``: ``"body"``, the paper's (forward, left) in the agent's frame, or ``"world"``,
+  the lab's ``dxdy`` (x, y) in the world frame;
+- ``max_speed``: the command's scale per component after clipping to [-1, 1] (the lab's
+  ``tanh`` output times its max velocity);
+- ``sensor``: its own ``[sensor]``-style table (default: the domain's ``[sensor]``);
+- ``moves_with``: class names; if given, an agent of this class moves only while an agent
+  of one of them is within ``moves_with_radius`` of it (0: its sensor's radius) at the
+  start of the step (the lab's ``needs_uav_to_move``, judged on the scan that chose the
+  action);
+- ``bounds``: ``[x_min, x_max, y_min, y_max]``, a box its agents are clamped to after each
+  move (idealised motion only);
+- ``influence_radius``: for the IndirectDifference credits (:mod:`physrover.domain.influence`),
+  how near its agents must be to a counted agent to be credited with its captures.
+
+Agent classes run under idealised motion for now; the CCEA and the envs take them in a
+later release (issue 33).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from typing import Any, ClassVar
+
+from physrover.config.base import (
+    ConfigBase,
+    check,
+    check_choice,
+    coerce_tables,
+    did_you_mean,
+)
+
+ACTIONS = ("body", "world")
+NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
+
+
+@dataclasses.dataclass(frozen=True)
+class AgentClass(ConfigBase):
+    """One ``[[agents]]`` table (module docstring)."""
+
+    section: ClassVar[str] = "agents"
+
+    name: str = "rover"
+    """The class's name: agents are ``NAME_j`` in the envs."""
+    count: int = 1
+    """Agents of this class in a team."""
+    captures: bool = True
+    """Its agents count toward POIs' couplings."""
+    action: str = "body"
+    """"body": (forward, left) in the agent's frame; "world": (x, y)."""
+    max_speed: float = 1.0
+    """World units per step per action component (after clipping to [-1, 1])."""
+    sensor: Any = None
+    """Its [sensor] table; None: the domain's."""
+    moves_with: tuple[str, ...] = ()
+    """Classes one of whose agents must be near for an agent of this class to move."""
+    moves_with_radius: float = 0.0
+    """How near, world units; 0: this class's sensor radius."""
+    bounds: tuple[float, ...] = ()
+    """[x_min, x_max, y_min, y_max]: the box its agents are clamped to (ideal motion)."""
+    influence_radius: float = 0.0
+    """Its agents influence counted agents within this distance, world units, for the
+    IndirectDifference credits ``ID`` and ``ID-step`` (0: nobody; the lab's: 5)."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        check(bool(NAME.match(self.name)), "name",
+              f"must match [a-z][a-z0-9_]* (it names agents), got {self.name!r}")  # fmt: skip
+        self.check_at_least(1, "count")
+        check_choice(self.action, ACTIONS, "action")
+        self.check_positive("max_speed")
+        check(self.moves_with_radius >= 0, "moves_with_radius",
+              f"must be >= 0 (0: the sensor's radius), got {self.moves_with_radius}")  # fmt: skip
+        check(0 <= self.influence_radius < math.inf, "influence_radius",
+              f"must be >= 0 (0: none), got {self.influence_radius}")  # fmt: skip
+        b = self.bounds
+        ok = not b or (len(b) == 4 and b[0] < b[1] and b[2] < b[3])
+        check(ok, "bounds", f"need [x_min, x_max, y_min, y_max] with min < max, got {list(b)}")
+
+    def table(self) -> dict[str, Any]:
+        """The TOML table (the sensor as a sub-table; no sensor: the domain's)."""
+        table = self.to_dict()
+        if self.sensor is None:
+            del table["sensor"]
+        else:
+            table["sensor"] = self.sensor.table()
+        return table
+
+
+def coerce_agents(value, component) -> tuple[AgentClass, ...]:
+    """``[[agents]]`` as AgentClasses, each sensor resolved by ``component`` (the domain's
+    sensor factory); errors name ``agents[c]``."""
+
+    def with_sensor(agent: AgentClass) -> AgentClass:
+        if agent.sensor is None:
+            return agent
+        return dataclasses.replace(agent, sensor=component(agent.sensor))
+
+    return coerce_tables(value, AgentClass, "agents", with_sensor)
+
+
+def check_agents(domain) -> None:
+    """The rules that need the whole domain: unique names, known class names, a radius for
+    the gate, bounds under idealised motion, someone who can capture."""
+    classes = domain.agents
+    names = [c.name for c in classes]
+    for c, agent in enumerate(classes):
+        check(agent.name not in names[:c], f"agents[{c}].name", f"{agent.name!r} is used twice")
+        for other in agent.moves_with:
+            hint = did_you_mean(other, names)
+            check(other in names, f"agents[{c}].moves_with",
+                  f"unknown class {other!r}{hint}; classes: {', '.join(names)}")  # fmt: skip
+            check(other != agent.name, f"agents[{c}].moves_with", "a class cannot gate itself")
+        if agent.moves_with and not agent.moves_with_radius:
+            radius = getattr(agent.sensor or domain.sensor, "radius", math.inf)
+            check(math.isfinite(radius), f"agents[{c}].moves_with_radius",
+                  "the sensor's radius is inf; give a finite radius")  # fmt: skip
+        check(
+            domain.motion == "ideal",
+            "agents",
+            'agent classes need motion = "ideal" for now (physics: a later release)',
+        )
+    check(
+        any(a.captures for a in classes),
+        "agents",
+        "no class counts toward captures (captures = true), so no POI can be captured",
+    )
+    counted = sum(a.count for a in classes if a.captures)
+    for k, n in enumerate(domain.n_req_per_poi):
+        where = f"pois[{k}].n_req" if domain.pois else "n_req"
+        check(n <= counted, where,
+              f"must be in [1, {counted}] (agents of capturing classes), got {n}")  # fmt: skip
+
+
+def agents_table(classes: tuple[AgentClass, ...]) -> list[dict]:
+    """The ``[[agents]]`` tables of ``classes``, as TOML writes them."""
+    return [agent.table() for agent in classes]
+
+
+__all__ = ["ACTIONS", "AgentClass", "agents_table", "check_agents", "coerce_agents"]

@@ -1,0 +1,74 @@
+"""Agent classes as the compiled motion reads them (``[[agents]]``,
+:mod:`physrover.config.agents`).
+
+:class:`Roles` holds each agent's class constants as arrays (agents in team order, a
+class's agents contiguous), and :func:`physrover.domain.kernels.move_team` takes it as its
+``roles`` argument (None, the paper's rovers, compiles it away). With roles, agent i's
+move from the (forward, left) or (x, y) command ``a`` clipped to [-1, 1]:
+
+1. *gate*: if its class names ``moves_with`` classes and no agent of them is within
+   ``gate_radius`` of it at the start of the step (every agent's position before anyone
+   moves: the scan its action was computed from), ``a = 0``;
+2. *speed*: ``a = max_speed * a``;
+3. *frame*: a body-frame agent moves as the paper's rover (``a`` in its own frame); a
+   world-frame one by ``a`` itself; either way the heading turns to the move's direction;
+4. *bounds*: the new position is clamped to its class's box (+-inf: none).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+
+class Roles(NamedTuple):
+    """Per-agent constants of R agents in C classes (module docstring)."""
+
+    agent_class: np.ndarray
+    """(R,) int64: each agent's class, in ``[[agents]]`` order."""
+    speed: np.ndarray
+    """(R,) float64: the class's ``max_speed``."""
+    world_frame: np.ndarray
+    """(R,) bool: the class's action is ``"world"``."""
+    bounds: np.ndarray
+    """(R, 4) float64: x_min, x_max, y_min, y_max (+-inf: unbounded)."""
+    gate: np.ndarray
+    """(R, C) bool: the classes that must be near for agent i to move (none: always)."""
+    gate_radius_sq: np.ndarray
+    """(R,) float64: how near, squared."""
+
+    @classmethod
+    def build(cls, config) -> Roles | None:
+        """The roles of ``config`` (a :class:`~physrover.config.DomainConfig`), or None
+        without ``[[agents]]``."""
+        classes = config.agents
+        if not classes:
+            return None
+        names = [c.name for c in classes]
+        agent_class = np.repeat(np.arange(len(classes)), [c.count for c in classes])
+        per_class = {
+            "speed": [c.max_speed for c in classes],
+            "world_frame": [c.action == "world" for c in classes],
+            "bounds": [c.bounds or (-math.inf, math.inf, -math.inf, math.inf) for c in classes],
+            "gate": [[n in c.moves_with for n in names] for c in classes],
+            "gate_radius_sq": [gate_radius(c, config) ** 2 for c in classes],
+        }
+        return cls(agent_class.astype(np.int64),
+                   **{k: np.array(v)[agent_class] for k, v in per_class.items()})  # fmt: skip
+
+
+def gate_radius(agent_class, config) -> float:
+    """The class's ``moves_with_radius``, or its sensor's radius for 0 (the lab's rule)."""
+    if agent_class.moves_with_radius:
+        return agent_class.moves_with_radius
+    return float(getattr(agent_class.sensor or config.sensor, "radius", math.inf))
+
+
+def class_rows(config) -> list[slice]:
+    """Each class's rows of the team's (R, ...) arrays, in ``[[agents]]`` order (the
+    implicit one class of the paper's rovers without them)."""
+    counts = [c.count for c in config.agents] or [config.n_rovers]
+    starts = np.cumsum([0, *counts])
+    return [slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:], strict=True)]

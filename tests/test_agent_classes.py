@@ -1,0 +1,227 @@
+"""Agent classes ([[agents]], issue 33): config, hand-worked moves, a plain-loop oracle,
+who counts toward captures, per-class sensors, and the paper's team as one class."""
+
+import math
+
+import numpy as np
+import pytest
+from oracles import classes_step
+
+from physrover.config import ConfigError, DomainConfig, RunConfig
+from physrover.domain.world import RoverWorld, StartOverrides
+from physrover.envs import RoverEnv
+
+ROVERS_AND_UAVS = """
+[domain]
+n_req = 1
+
+[[agents]]
+name = "rover"
+count = 4
+moves_with = ["uav"]      # moves only while a UAV is within its sensor's radius (3)
+sensor = { kind = "lidar", radius = 3.0, empty = -1.0 }
+
+[[agents]]
+name = "uav"
+count = 2
+captures = false          # never counts toward a POI: its D is 0
+action = "world"          # (x, y) commands, the lab's dxdy
+max_speed = 2.0
+bounds = [-10.0, 10.0, -10.0, 10.0]
+sensor = { kind = "lidar", sectors = 3, radius = 100.0, empty = -1.0 }
+"""
+
+
+def _domain(text=ROVERS_AND_UAVS, **changes):
+    return DomainConfig.from_toml(text).replace(**changes) if changes else (
+        DomainConfig.from_toml(text))  # fmt: skip
+
+
+def test_classes_round_trip_and_derive_the_team_size():
+    d = _domain()
+    assert d.n_rovers == 6 and [c.name for c in d.agents] == ["rover", "uav"]
+    assert d.agents[1].sensor.sectors == 3 and d.agents[0].sensor.radius == 3.0
+    assert DomainConfig.from_toml(d.to_toml()) == d
+    assert "[[agents]]" in d.to_toml() and "[agents.sensor]" in d.to_toml()
+    assert "n_rovers" not in d.to_toml()
+    assert "agents" not in DomainConfig().to_toml()  # the paper's TOML is what it was
+
+
+@pytest.mark.parametrize(
+    ("toml", "message"),
+    [
+        (
+            "[domain]\nn_rovers = 4\nn_req = 1\n[[agents]]\ncount = 2\n[[agents]]\nname = 'u'",
+            "n_rovers: is the sum of the [[agents]] counts (3); remove it or set it to 3",
+        ),
+        (
+            "[domain]\nn_req = 1\n[[agents]]\nname = 'a'\n[[agents]]\nname = 'a'",
+            "agents[1].name: 'a' is used twice",
+        ),  # fmt: skip
+        (
+            "[domain]\nn_req = 1\n[[agents]]\nmoves_with = ['uvs']\n[[agents]]\nname = 'uav'",
+            "agents[0].moves_with: unknown class 'uvs' (did you mean 'uav'?); classes: rover, uav",
+        ),
+        (
+            "[domain]\nn_req = 1\n[[agents]]\nmoves_with = ['uav']\n[[agents]]\nname = 'uav'",
+            "agents[0].moves_with_radius: the sensor's radius is inf; give a finite radius",
+        ),
+        ("[[agents]]\nname = 'Rover'", "agents[0].name: must match [a-z][a-z0-9_]*"),
+        (
+            "[domain]\nn_req = 1\n[[agents]]\ncaptures = false",
+            "agents: no class counts toward captures",
+        ),  # fmt: skip
+        (
+            "[domain]\nn_req = 3\n[[agents]]\ncount = 2\n[[agents]]\nname = 'u'\ncount = 5\n"
+            "captures = false",
+            "n_req: must be in [1, 2] (agents of capturing classes), got 3",
+        ),
+        ("[domain]\nn_req = 1\n[[agents]]\nbounds = [1, 0, 0, 1]", "agents[0].bounds: need"),
+        (
+            "[domain]\nn_req = 1\n[[agents]]\nsensor = { kind = 'lidr' }",
+            "agents[0].sensor.kind: unknown sensor 'lidr' (did you mean 'lidar'?)",
+        ),  # fmt: skip
+        (
+            "[domain]\nn_req = 1\nmotion = 'physics'\n[[agents]]",
+            'agents: agent classes need motion = "ideal" for now',
+        ),  # fmt: skip
+    ],
+)
+def test_bad_agents_tables_name_the_field(toml, message):
+    with pytest.raises(ConfigError) as info:
+        DomainConfig.from_toml(toml)
+    assert message in str(info.value)
+
+
+def test_training_and_the_envs_refuse_classes_until_they_take_them():
+    with pytest.raises(ConfigError, match="agents: training agent classes comes in a later"):
+        RunConfig.from_toml(ROVERS_AND_UAVS)
+    with pytest.raises(ValueError, match="agents: the envs take agent classes in a later"):
+        RoverEnv(config=_domain())
+    with pytest.raises(ConfigError, match=r"set \[\[pois\]\] and \[\[agents\]\] tables"):
+        RunConfig().with_overrides({"agents": []})
+
+
+# -- moves, worked by hand ------------------------------------------------------------------
+
+
+def _world(domain, positions, headings=None, pois=((50.0, 50.0),)):
+    world = RoverWorld(domain.replace(poi_values=(1.0,) * len(pois)), 1)
+    n = domain.n_rovers
+    heads = np.zeros(n) if headings is None else np.asarray(headings, dtype=float)
+    obs = world.reset([np.random.default_rng(0)], StartOverrides(
+        rover_positions=np.asarray(positions, dtype=float), rover_headings=heads,
+        poi_positions=np.asarray(pois, dtype=float)))  # fmt: skip
+    return world, obs
+
+
+TWO = """
+[domain]
+n_req = 1
+[[agents]]
+name = "rover"
+moves_with = ["uav"]
+moves_with_radius = 3.0
+[[agents]]
+name = "uav"
+captures = false
+action = "world"
+max_speed = 2.0
+bounds = [-10.0, 4.0, -10.0, 10.0]
+"""
+
+
+def test_the_gate_is_judged_before_the_step():
+    d = _domain(TWO)
+    # the UAV at 2.9 moves away this step: the rover, judged before the step, still moves
+    world, _ = _world(d, [(0, 0), (2.9, 0)])
+    world.step(np.array([[[1.0, 0.0], [1.0, 0.0]]]))
+    assert world.rover_positions[0, 0].tolist() == [1.0, 0.0]
+    assert world.rover_positions[0, 1].tolist() == [4.0, 0.0]  # 2.9 + 2, clamped at 4
+    # the UAV at 3.5 comes within 3 this step: the rover waits a step
+    world, _ = _world(d, [(0, 0), (3.5, 0)])
+    world.step(np.array([[[1.0, 0.0], [-1.0, 0.0]]]))
+    assert world.rover_positions[0, 0].tolist() == [0.0, 0.0]
+    assert world.actions[0, 0, 0].tolist() == [1.0, 0.0]  # the command is still recorded
+    world.step(np.array([[[1.0, 0.0], [0.0, 0.0]]]))
+    assert world.rover_positions[0, 0].tolist() == [1.0, 0.0]
+
+
+def test_speed_world_frame_and_bounds():
+    d = _domain(TWO)
+    # the UAV faces +y (heading pi/2) but (x, y) commands ignore it; speed 2, clipped first
+    world, _ = _world(d, [(0, 0), (0, 1)], headings=[0.0, math.pi / 2])
+    world.step(np.array([[[0.0, 0.0], [5.0, -0.5]]]))
+    np.testing.assert_array_equal(world.rover_positions[0, 1], [2.0, 0.0])
+    assert world.rover_headings[0, 1] == pytest.approx(math.atan2(-1.0, 2.0))
+    world.step(np.array([[[0.0, 0.0], [1.0, 0.0]]]))
+    np.testing.assert_array_equal(world.rover_positions[0, 1], [4.0, 0.0])  # 2 + 2 = 4 = x_max
+    world.step(np.array([[[0.0, 0.0], [1.0, 0.0]]]))
+    np.testing.assert_array_equal(world.rover_positions[0, 1], [4.0, 0.0])  # held at the bound
+
+
+def test_only_capturing_classes_count():
+    d = _domain(TWO)
+    world, _ = _world(d, [(30, 30), (0, 0)], pois=[(1.0, 0.0)])  # only the UAV at the POI
+    assert world.G[0] == 0.0 and not world.state.in_range[0, 0, 1, 0]
+    world, _ = _world(d, [(1, 0), (0, 0)], pois=[(1.0, 0.0)])  # the rover there too
+    assert world.G[0] == 1.0 and world.D[0].tolist() == [1.0, 0.0]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_random_episodes_move_as_the_oracle(seed):
+    rng = np.random.default_rng(seed)
+    text = TWO.replace("moves_with_radius = 3.0", f"moves_with_radius = {rng.uniform(1, 4)}")
+    d = _domain(text).replace(n_req=1)
+    d = DomainConfig.from_toml(d.to_toml().replace('name = "uav"\ncount = 1',
+                                                   'name = "uav"\ncount = 3'))  # fmt: skip
+    world = RoverWorld(d, 3)
+    world.reset([np.random.default_rng([seed, e]) for e in range(3)])
+    classes = [d.agents[0]] + [d.agents[1]] * 3
+    names = [c.name for c in d.agents]
+    for _ in range(25):
+        before = world.rover_positions.copy(), world.rover_headings.copy()
+        actions = rng.uniform(-1.5, 1.5, (3, 4, 2))
+        world.step(actions)
+        for e in range(3):
+            positions, headings = classes_step(before[0][e].tolist(), before[1][e].tolist(),
+                                               actions[e], classes, names)  # fmt: skip
+            np.testing.assert_allclose(world.rover_positions[e], positions, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(world.rover_headings[e], headings, rtol=0, atol=1e-9)
+    uav_x = world.position_history[:, :, 1:, 0]
+    assert ((uav_x == 4.0) | (uav_x == -10.0)).any()  # a bound was met
+    moved = np.abs(world.position_history[1:, :, 0] - world.position_history[:-1, :, 0])
+    assert (moved.sum(-1) == 0).any() and (moved.sum(-1) > 0).any()  # the gate shut and opened
+
+
+def test_each_class_observes_with_its_own_sensor_zero_padded():
+    d = _domain()
+    world = RoverWorld(d, 2)
+    obs = world.reset([np.random.default_rng(e) for e in range(2)])
+    assert obs.shape == (2, 6, 8)  # the rovers' 8, the UAVs' 6 padded to 8
+    for rows, sensor in [(slice(0, 4), d.agents[0].sensor), (slice(4, 6), d.agents[1].sensor)]:
+        alone = np.empty((2, 6, sensor.dim), dtype=np.float32)
+        sensor.observe(world.state, d.d_min, alone)
+        np.testing.assert_array_equal(obs[:, rows, : sensor.dim], alone[:, rows])
+    assert (obs[:, 4:, 6:] == 0).all() and (obs[:, :4] == -1).any()
+
+
+def test_one_class_of_the_paper_rovers_is_the_paper_team():
+    """[[agents]] with one class of 15 default rovers: the classes' path (a step loop with
+    roles) equals the paper's fused step bit for bit."""
+    paper = DomainConfig(n_req=2)
+    mirror = DomainConfig.from_toml('[domain]\nn_req = 2\n[[agents]]\nname = "rover"\n'
+                                    "count = 15\n")  # fmt: skip
+    worlds = [RoverWorld(c, 3) for c in (paper, mirror)]
+    assert worlds[0].fused and not worlds[1].fused
+    actions = np.random.default_rng(3).uniform(-1.2, 1.2, (paper.steps, 3, 15, 2))
+    for w in worlds:
+        w.reset([np.random.default_rng(e) for e in range(3)])
+        for a in actions:
+            w.step(a)
+    a, b = worlds
+    for name in ("observations", "position_history", "heading_history"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    np.testing.assert_array_equal(a.state.in_range, b.state.in_range)
+    np.testing.assert_array_equal(a.G, b.G)
+    np.testing.assert_array_equal(a.D, b.D)

@@ -1,0 +1,167 @@
+"""IndirectDifference (issue 33): hand-worked credits, a plain-loop oracle on random
+episodes, and D where nobody influences anyone."""
+
+import numpy as np
+import pytest
+from oracles import indirect_difference_loops
+
+from physrover.config import DomainConfig, LearnConfig
+from physrover.domain.credit import CREDITS
+from physrover.domain.influence import replay_captures
+from physrover.domain.kernels import score
+from physrover.domain.world import RoverWorld, StartOverrides
+
+ROVER_AND_TWO_UAVS = """
+[domain]
+n_req = 1
+[[agents]]
+name = "rover"
+[[agents]]
+name = "uav"
+count = 2
+captures = false
+action = "world"
+influence_radius = 5.0
+"""
+
+
+def _episode(paths, pois=((0.0, 0.0),), values=(2.0,)):
+    """The world after hand-made paths (``paths[t]``: every agent's position at step t)."""
+    domain = DomainConfig.from_toml(ROVER_AND_TWO_UAVS).replace(
+        steps=len(paths) - 1, poi_values=values)  # fmt: skip
+    world = RoverWorld(domain, 1)
+    world.reset([np.random.default_rng(0)], StartOverrides(
+        rover_positions=np.asarray(paths[0], dtype=float), rover_headings=np.zeros(3),
+        poi_positions=np.asarray(pois, dtype=float)))  # fmt: skip
+    for t, positions in enumerate(paths[1:], start=1):
+        world.state.rover_positions[0] = positions
+        world.position_history[t, 0] = positions
+        score(world.state, domain.d_cap, world.n_req, t, world.poi_rules)
+    return world
+
+
+def _credits(world):
+    return {name: CREDITS[name](world)[0].tolist() for name in ("D", "ID", "ID-step")}
+
+
+FAR, AWAY = (40.0, 0.0), (-40.0, 0.0)  # a rover far from the POI; a UAV far from all
+AT = (1.0, 0.0)  # the rover on the POI (within d_cap = 4)
+
+
+def test_a_uav_near_at_the_capture_is_credited_with_it():
+    world = _episode([[FAR, AWAY, AWAY], [AT, (3.0, 0.0), AWAY], [FAR, AWAY, AWAY]])
+    assert world.G[0] == 2.0
+    assert _credits(world) == {"D": [2.0, 0.0, 0.0], "ID": [2.0, 2.0, 0.0],
+                               "ID-step": [2.0, 2.0, 0.0]}  # fmt: skip
+
+
+def test_trajectory_credit_needs_no_presence_at_the_capture():
+    # the UAV is near the rover at steps 0 and 2, not at the capture (step 1)
+    world = _episode([[FAR, (42.0, 0.0), AWAY], [AT, AWAY, AWAY], [FAR, (41.0, 0.0), AWAY]])
+    assert _credits(world) == {"D": [2.0, 0.0, 0.0], "ID": [2.0, 2.0, 0.0],
+                               "ID-step": [2.0, 0.0, 0.0]}  # fmt: skip
+
+
+def test_the_most_present_and_the_present_at_the_step_differ():
+    # UAV 1 (agent 1) near the rover at steps 0, 2 and 3; UAV 2 only at the capture, step 1
+    paths = [[FAR, (41.0, 0.0), AWAY], [AT, AWAY, (2.0, 0.0)], [FAR, (39.0, 0.0), AWAY],
+             [FAR, (40.5, 0.0), AWAY]]  # fmt: skip
+    assert _credits(_episode(paths)) == {"D": [2.0, 0.0, 0.0], "ID": [2.0, 2.0, 0.0],
+                                         "ID-step": [2.0, 0.0, 2.0]}  # fmt: skip
+
+
+def test_ties_go_to_the_lower_index_and_nobody_near_credits_nobody():
+    tie = _episode([[FAR, AWAY, AWAY], [AT, (2.0, 0.0), (0.0, 0.0)], [FAR, AWAY, AWAY]])
+    assert _credits(tie) == {"D": [2.0, 0.0, 0.0], "ID": [2.0, 2.0, 0.0],
+                             "ID-step": [2.0, 2.0, 0.0]}  # fmt: skip
+    alone = _episode([[FAR, AWAY, AWAY], [AT, AWAY, AWAY], [FAR, AWAY, AWAY]])
+    assert _credits(alone) == {"D": [2.0, 0.0, 0.0], "ID": [2.0, 0.0, 0.0],
+                               "ID-step": [2.0, 0.0, 0.0]}  # fmt: skip
+
+
+def test_without_influencers_both_credits_are_d():
+    scenario = {"kind": "uniform", "half_size": 6.0, "min_separation": 1.0}
+    world = RoverWorld(DomainConfig(n_req=2, n_rovers=6, scenario=scenario), 8)
+    world.reset([np.random.default_rng(e) for e in range(8)])
+    rng = np.random.default_rng(0)
+    for _ in range(world.config.steps):
+        world.step(rng.uniform(-1, 1, (8, 6, 2)))
+    assert world.G.max() > 0
+    for name in ("ID", "ID-step"):
+        np.testing.assert_array_equal(CREDITS[name](world), world.D)
+
+
+def test_replay_with_nothing_removed_is_the_episode():
+    world = RoverWorld(DomainConfig(n_req=2, n_rovers=6), 5)
+    world.reset([np.random.default_rng(e) for e in range(5)])
+    rng = np.random.default_rng(1)
+    for _ in range(world.config.steps):
+        world.step(rng.uniform(-1, 1, (5, 6, 2)))
+    removed = np.zeros((5, 2, world.config.steps + 1, 6), dtype=bool)
+    removed[:, 1, :, 3] = True  # set 1: rover 3's whole trajectory, D's counterfactual
+    out = np.empty((5, 2, 4), dtype=bool)
+    replay_captures(world.state.in_range, removed, world.n_req, np.zeros((4, 4), bool),
+                    np.zeros(4, bool), world.config.steps, out)  # fmt: skip
+    np.testing.assert_array_equal(out[:, 0], world.state.captured)
+    np.testing.assert_array_equal(out[:, 1], world.state.captured_without[:, 3])
+
+
+MIXED = """
+[domain]
+n_req = 2
+steps = 30
+scenario = {{ kind = "uniform", half_size = 6.0, min_separation = 1.0 }}
+[[pois]]
+value = 1.0
+[[pois]]
+value = 2.0
+n_req = 3
+[[pois]]
+value = 3.0
+after = [0]
+[[pois]]
+value = 4.0
+score_at = "{last}"
+[[agents]]
+name = "rover"
+count = 4
+[[agents]]
+name = "uav"
+count = 2
+captures = false
+action = "world"
+influence_radius = 3.0
+"""
+
+
+@pytest.mark.parametrize("timescale", ["trajectory", "step"])
+@pytest.mark.parametrize("seed", range(4))
+def test_random_episodes_credit_as_the_oracle(seed, timescale):
+    text = MIXED.format(last=["any", "final"][seed % 2])
+    if seed >= 2:
+        text = text.replace("steps = 30", 'steps = 30\nscored_states = "before-steps"')
+    domain = DomainConfig.from_toml(text)
+    world = RoverWorld(domain, 8)
+    world.reset([np.random.default_rng([seed, e]) for e in range(8)])
+    rng = np.random.default_rng(seed)
+    for _ in range(domain.steps):
+        world.step(rng.uniform(-1, 1, (8, 6, 2)))
+    credit = CREDITS["ID" if timescale == "trajectory" else "ID-step"](world)
+    pois = domain.pois
+    last = domain.steps if domain.scored_states == "all" else domain.steps - 1
+    influence, counted = [0.0] * 4 + [3.0] * 2, [True] * 4 + [False] * 2
+    differs = 0
+    for e in range(8):
+        score_args = (world.poi_positions[e].tolist(), world.poi_values[e].tolist(),
+                      [domain.d_cap] * 4, domain.n_req_per_poi, [list(p.after) for p in pois],
+                      [p.score_at == "final" for p in pois], list(range(last + 1)))  # fmt: skip
+        expected = indirect_difference_loops(world.position_history[:, e].tolist(),
+                                             score_args, influence, counted, timescale)  # fmt: skip
+        assert credit[e].tolist() == expected
+        differs += int((credit[e] != world.D[e]).any())
+    assert world.G.max() > 0 and differs > 0  # the UAVs earned something D does not give
+
+
+def test_the_credits_are_feedback_names():
+    assert LearnConfig(feedback="ID").feedback == "ID"
+    assert LearnConfig(feedback="ID-step").feedback == "ID-step"
