@@ -9,7 +9,6 @@ from oracles import classes_step
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
 from physrover.domain.world import RoverWorld, StartOverrides
-from physrover.envs import RoverEnv
 
 ROVERS_AND_UAVS = """
 [domain]
@@ -93,13 +92,11 @@ def test_bad_agents_tables_name_the_field(toml, message):
     assert message in str(info.value)
 
 
-def test_training_and_the_envs_refuse_classes_until_they_take_them():
-    with pytest.raises(ConfigError, match="agents: training agent classes comes in a later"):
-        RunConfig.from_toml(ROVERS_AND_UAVS)
-    with pytest.raises(ValueError, match="agents: the envs take agent classes in a later"):
-        RoverEnv(config=_domain())
+def test_classes_are_set_in_toml_not_on_the_command_line():
     with pytest.raises(ConfigError, match=r"set \[\[pois\]\] and \[\[agents\]\] tables"):
         RunConfig().with_overrides({"agents": []})
+    with pytest.raises(ConfigError, match="n_rovers: set"):
+        RunConfig.from_toml(ROVERS_AND_UAVS).with_overrides({"n_rovers": 3})
 
 
 # -- moves, worked by hand ------------------------------------------------------------------

@@ -23,8 +23,8 @@ counts. A class sets:
 - ``influence_radius``: for the IndirectDifference credits (:mod:`physrover.domain.influence`),
   how near its agents must be to a counted agent to be credited with its captures.
 
-Agent classes run under idealised motion for now; the CCEA and the envs take them in a
-later release (issue 33).
+Agent classes run under idealised motion for now. The CCEA trains them
+(:mod:`physrover.learn.classes`); the gradient-based trainers do not.
 """
 
 from __future__ import annotations

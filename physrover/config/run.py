@@ -42,11 +42,11 @@ class RunConfig:
             raise ConfigError("domain", "must be a DomainConfig")
         if not isinstance(self.learn, LearnConfig):
             raise ConfigError("learn", "must be a LearnConfig")
-        check(not self.domain.agents, "agents", "training agent classes comes in a later "
-              "release (issue 33); physrover.domain.world.RoverWorld steps them today")  # fmt: skip
         credit = CREDITS[self.learn.feedback] if self.learn.feedback in CREDITS else None
         getattr(credit, "check", lambda domain: None)(self.domain)  # defined for the domain?
         spec = TRAINERS[self.learn.method] if self.learn.method in TRAINERS else None
+        check(spec is None or not self.domain.agents, "agents", f"{self.learn.method} trains "
+              "teams of the paper's rovers only; agent classes train with the CCEA")  # fmt: skip
         if spec is None:
             if self.trainer is not None:
                 raise ConfigError("trainer", f"method {self.learn.method!r} takes no trainer")

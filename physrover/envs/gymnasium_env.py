@@ -43,13 +43,15 @@ def team_spaces(config: DomainConfig) -> tuple[spaces.Box, spaces.Box]:
     """(observation, action) spaces of one team: (R, n_obs) from the sensor, (R, 2).
 
     The observations are bounded below by 0, as the built-in sensor's densities; a sensor
-    with other bounds sets ``low`` and ``high`` attributes (scalars)."""
-    if config.agents:
-        raise ValueError("agents: the envs take agent classes in a later release (issue 33); "
-                         "physrover.domain.world.RoverWorld steps them today")  # fmt: skip
+    with other bounds sets ``low`` and ``high`` attributes (scalars). With agent classes
+    (``[[agents]]``) n_obs is the widest class's (a class's observations fill its first
+    columns, 0 after) and the bounds span every class's sensor."""
     shape = (config.n_rovers,)
-    low, high = getattr(config.sensor, "low", 0.0), getattr(config.sensor, "high", np.inf)
-    observation = spaces.Box(low, high, shape=(*shape, config.sensor.dim), dtype=np.float32)
+    sensors = [c.sensor or config.sensor for c in config.agents] or [config.sensor]
+    low = min(getattr(sensor, "low", 0.0) for sensor in sensors)
+    high = max(getattr(sensor, "high", np.inf) for sensor in sensors)
+    n_obs = max(sensor.dim for sensor in sensors)  # agent classes: the widest class's
+    observation = spaces.Box(low, high, shape=(*shape, n_obs), dtype=np.float32)
     action = spaces.Box(-1.0, 1.0, shape=(*shape, ACTION_DIM), dtype=np.float32)
     return observation, action
 

@@ -21,7 +21,7 @@ from physrover.config import ConfigError
 from physrover.core.stats import mean_ci
 from physrover.envs.gymnasium_env import RoverVectorEnv
 from physrover.experiment.store import load_champions, load_run_config
-from physrover.learn.policies import PolicyLayout
+from physrover.learn.classes import team_layout
 
 EVAL_SEED = 1_000_000
 """Default seed of the first evaluation episode: far from the seeds training runs use, so the
@@ -118,7 +118,7 @@ def play_champion(
     domain = config.domain.replace(**changes)
     generation, genomes = load_champions(run_dir, checkpoint)
     env = RoverVectorEnv(episodes, config=domain, fresh_teams=episodes)  # each its own start
-    act = PolicyLayout(config.learn.hidden, env.single_observation_space.shape[-1]).prepare(
+    act = team_layout(config.learn.hidden, domain).prepare(
         np.broadcast_to(genomes, (episodes, *genomes.shape))
     )
     obs, _ = env.reset(seed=seed)

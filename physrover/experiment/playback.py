@@ -21,7 +21,7 @@ import numpy as np
 from physrover.config import ConfigError, DomainConfig
 from physrover.envs.gymnasium_env import RoverEnv
 from physrover.experiment.store import load_champions, load_run_config
-from physrover.learn.policies import PolicyLayout
+from physrover.learn.classes import team_layout
 from physrover.viz.render import (
     FrameState,
     RenderConfig,
@@ -37,7 +37,7 @@ DIVIDER_RGB = (40, 40, 40)
 """Colour of that bar (dark grey, the colour of the text)."""
 
 
-def play(env: RoverEnv, layout: PolicyLayout, genomes: np.ndarray, seed: int) -> list[FrameState]:
+def play(env: RoverEnv, layout, genomes: np.ndarray, seed: int) -> list[FrameState]:
     """Play one episode; the states of its ``steps + 1`` frames (reset, then every step).
 
     The last G is also ``env.world.G``."""
@@ -81,7 +81,7 @@ def record_run(
     if side_by_side:
         domains = [config.domain.replace(motion="ideal"), config.domain.replace(motion="physics")]
     envs = [RoverEnv(config=d) for d in domains]
-    layout = PolicyLayout(config.learn.hidden, envs[0].observation_space.shape[-1])
+    layout = team_layout(config.learn.hidden, config.domain)
     width = render.width * len(envs) + DIVIDER_PX * (len(envs) - 1)
     scores = []
     with VideoWriter(out, width, render.height, render.fps) as video:

@@ -41,10 +41,10 @@ from physrover.config import RunConfig
 from physrover.core.compiled import dims
 from physrover.core.registry import CREDITS
 from physrover.envs.gymnasium_env import RoverVectorEnv, generator_from_state, team_spaces
+from physrover.learn.classes import team_layout
 from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.fitness import Problem, make_method
 from physrover.learn.kernels import gather_trajectories
-from physrover.learn.policies import PolicyLayout
 from physrover.learn.team_elites import TeamElites
 from physrover.learn.teams import softmax_teams
 
@@ -79,7 +79,7 @@ class CCEA:
         self.n_rovers, self.k = d.n_rovers, cfg.population
         obs_space, action_space = team_spaces(d)  # sizes from the sensor and the domain
         n_obs, n_act = obs_space.shape[-1], action_space.shape[-1]
-        self.layout = PolicyLayout(cfg.hidden, n_obs, n_act)
+        self.layout = team_layout(cfg.hidden, d)  # one per agent class (learn.classes)
         seeds = np.random.SeedSequence(cfg.seed).spawn(6)
         init_rng, self.team_rng, self.evo_rng, critic_init, self.critic_rng, env_seq = [
             np.random.default_rng(s) for s in seeds

@@ -1,0 +1,82 @@
+"""Policies of a team of agent classes (``[[agents]]``, :mod:`physrover.config.agents`).
+
+Every agent keeps its own population, as in the paper; an agent's policies have its
+class's shape, ``n_in_c -> hidden -> 2`` with ``n_in_c`` its class's sensor size
+(:class:`~physrover.learn.policies.PolicyLayout`). The populations stay one (R, k, P)
+array, P the largest class's genome, a smaller class's genomes in the first P_c entries
+(the rest are never read: evolution mutates them, harmlessly). The world's observations
+are (E, R, D) with D the widest class's, a class's in its first ``n_in_c`` columns and 0
+after; a class's policies read their columns, and a fitness critic of an agent sees its
+class's observations, zero-padded (a weight on a padded input never moves: the input is
+always 0).
+
+:func:`team_layout` gives a domain's layout: the paper's single
+:class:`~physrover.learn.policies.PolicyLayout` without classes (the same code as
+before), a :class:`ClassLayouts` with them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from physrover.domain.roles import class_rows
+from physrover.learn.policies import PolicyLayout
+
+
+class ClassLayouts:
+    """The policy layouts of a team's classes, with PolicyLayout's ``init``, ``prepare``
+    and ``act`` over the padded (R, k, P) genomes (module docstring)."""
+
+    def __init__(self, hidden: int, domain):
+        self.rows = class_rows(domain)
+        dims = [(c.sensor or domain.sensor).dim for c in domain.agents]
+        self.layouts = [PolicyLayout(hidden, d) for d in dims]
+        self.hidden = hidden
+        self.n_in = max(dims)
+        self.size = max(layout.size for layout in self.layouts)
+
+    def init(self, shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
+        """(R, k, P) genomes: each class's initialised as PolicyLayout does, class by
+        class in ``[[agents]]`` order from ``rng``; padding 0."""
+        n_agents, k = shape
+        out = np.zeros((n_agents, k, self.size), dtype=np.float32)
+        for rows, layout in zip(self.rows, self.layouts, strict=True):
+            out[rows, :, : layout.size] = layout.init((rows.stop - rows.start, k), rng)
+        return out
+
+    def prepare(self, genomes: np.ndarray) -> MixedTeamPolicy:
+        """The policy ``obs (E, R, n_in) -> actions (E, R, 2)`` of fixed (E, R, P) genomes."""
+        genomes = np.asarray(genomes)
+        if genomes.shape[-1] != self.size:
+            raise ValueError(f"genomes must have {self.size} parameters, got {genomes.shape[-1]}")
+        return MixedTeamPolicy(genomes, self)
+
+    def act(self, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:
+        """(E, R, 2) actions of (E, R, P) genomes on (E, R, n_in) observations."""
+        return self.prepare(genomes)(obs)
+
+
+class MixedTeamPolicy:
+    """Each class's policies on its agents' rows and its observation columns."""
+
+    def __init__(self, genomes: np.ndarray, layouts: ClassLayouts):
+        pairs = zip(layouts.rows, layouts.layouts, strict=True)
+        self.parts = [(rows, layout.n_in, layout.prepare(genomes[:, rows, : layout.size]))
+                      for rows, layout in pairs]  # fmt: skip
+        self.shape = genomes.shape[:2]
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        out = np.empty((*self.shape, 2), dtype=np.float32)
+        for rows, n_in, policy in self.parts:
+            out[:, rows] = policy(obs[:, rows, :n_in])
+        return out
+
+
+def team_layout(hidden: int, domain) -> PolicyLayout | ClassLayouts:
+    """The policies' layout of ``domain``'s team (module docstring)."""
+    if not domain.agents:
+        return PolicyLayout(hidden, domain.sensor.dim)
+    return ClassLayouts(hidden, domain)
+
+
+__all__ = ["ClassLayouts", "MixedTeamPolicy", "team_layout"]

@@ -1,0 +1,115 @@
+"""The CCEA on a team of agent classes (issue 33): each class's policies have its shape and
+read its observations; runs train, resume bit-identically and render."""
+
+import numpy as np
+import pytest
+from conftest import assert_same_run
+from gymnasium.utils.env_checker import check_env
+from oracles import policy_actions
+
+from physrover.config import ConfigError, DomainConfig, RunConfig
+from physrover.envs import RoverEnv
+from physrover.experiment.training import train
+from physrover.learn.ccea import CCEA
+from physrover.learn.classes import ClassLayouts, team_layout
+from physrover.learn.policies import PolicyLayout
+
+MIXED = """
+[domain]
+n_req = 1
+steps = 20
+scenario = { kind = "uniform", half_size = 5.0, min_separation = 1.0 }
+[[agents]]
+name = "rover"
+count = 3
+moves_with = ["uav"]
+sensor = { kind = "lidar", radius = 4.0, empty = -1.0 }
+[[agents]]
+name = "uav"
+count = 2
+captures = false
+action = "world"
+influence_radius = 5.0
+sensor = { kind = "lidar", sectors = 3, radius = 100.0, empty = -1.0 }
+[learn]
+population = 6
+hidden = 5
+"""
+
+
+def test_each_class_has_its_own_policy_shape():
+    domain = DomainConfig.from_toml(MIXED.split("[learn]")[0])
+    layouts = team_layout(5, domain)
+    assert isinstance(layouts, ClassLayouts)
+    assert [layout.n_in for layout in layouts.layouts] == [8, 6]
+    sizes = [PolicyLayout(5, 8).size, PolicyLayout(5, 6).size]
+    assert layouts.size == max(sizes) and layouts.n_in == 8
+    genomes = layouts.init((5, 4), np.random.default_rng(0))
+    # class by class, in order, from one generator: what PolicyLayout draws for each
+    rng = np.random.default_rng(0)
+    rover, uav = PolicyLayout(5, 8).init((3, 4), rng), PolicyLayout(5, 6).init((2, 4), rng)
+    np.testing.assert_array_equal(genomes[:3], rover)
+    np.testing.assert_array_equal(genomes[3:, :, : sizes[1]], uav)
+    assert (genomes[3:, :, sizes[1] :] == 0).all()
+    assert isinstance(team_layout(5, DomainConfig()), PolicyLayout)  # the paper's team
+
+
+def test_a_class_policy_reads_its_own_columns():
+    domain = DomainConfig.from_toml(MIXED.split("[learn]")[0])
+    layouts = ClassLayouts(5, domain)
+    rng = np.random.default_rng(1)
+    genomes = layouts.init((5, 3), rng)[:, :1].transpose(1, 0, 2).repeat(2, 0)  # (E=2, R, P)
+    obs = rng.normal(size=(2, 5, 8)).astype(np.float32)
+    actions = layouts.act(genomes, obs)
+    for rows, layout in zip(layouts.rows, layouts.layouts, strict=True):
+        expected = policy_actions(genomes[:, rows, : layout.size], 5, obs[:, rows, : layout.n_in])
+        np.testing.assert_allclose(actions[:, rows], expected, rtol=1e-5, atol=1e-6)
+    # what a UAV policy gets in its padded columns does not matter
+    obs[:, 3:, 6:] = 1e6
+    np.testing.assert_array_equal(layouts.act(genomes, obs)[:, 3:], actions[:, 3:])
+
+
+def test_the_env_takes_classes_with_padded_observations():
+    env = RoverEnv(config=DomainConfig.from_toml(MIXED.split("[learn]")[0]))
+    assert env.observation_space.shape == (5, 8) and env.observation_space.low.min() == -1.0
+    check_env(env, skip_render_check=True)
+    obs, _ = env.reset(seed=0)
+    assert (obs[3:, 6:] == 0).all()
+
+
+@pytest.mark.parametrize(("method", "feedback"),
+                         [("D", "D"), ("D", "ID-step"), ("max-critic", "ID")])  # fmt: skip
+def test_the_ccea_trains_classes(method, feedback):
+    config = RunConfig.from_toml(MIXED).with_overrides({"method": method,
+                                                         "feedback": feedback})  # fmt: skip
+    ccea = CCEA(config)
+    assert ccea.genomes.shape == (5, 6, ccea.layout.size)
+    for _ in range(3):
+        stats = ccea.run_generation()
+    assert stats.generation == 3 and np.isfinite(stats.eval_G)
+    if feedback == "D":  # a UAV never counts toward a capture: D is 0, so is its fitness
+        assert (ccea.fitness[3:] == 0).all()
+    if method == "max-critic":  # each agent's critic sees its class's observations, padded
+        buffer = ccea.method.critic.buffer
+        pairs = buffer.items[:, : buffer.size]  # (R, n, ..., 8 observations + 2 actions)
+        assert pairs.shape[-1] == 10 and buffer.size > 0
+        assert (pairs[3:, ..., 6:8] == 0).all() and (pairs[:3, ..., 6:8] != 0).any()
+
+
+def test_a_mixed_run_resumes_bit_identically_and_renders(tmp_path):
+    config = RunConfig.from_toml(MIXED).with_overrides(
+        {"method": "max-critic", "feedback": "ID-step", "checkpoint_every": 2}
+    )
+    full = train(config, tmp_path / "full", generations=4, progress=False)
+    part = train(config, tmp_path / "part", generations=2, progress=False)
+    train(None, part, resume=True, generations=4, progress=False)
+    assert_same_run(full, part)
+    from physrover.experiment.playback import record_run
+
+    out, scores = record_run(full, tmp_path / "mixed.mp4", episodes=1)
+    assert out.stat().st_size > 10_000 and len(scores) == 1
+
+
+def test_gradient_trainers_refuse_classes():
+    with pytest.raises(ConfigError, match="agents: mappo trains teams of the paper's rovers"):
+        RunConfig.from_toml(MIXED.replace("[learn]", '[learn]\nmethod = "mappo"'))
