@@ -149,3 +149,110 @@ def test_the_gymnasium_env_declares_the_empty_value():
 def test_bad_lidar_fields(field, value, message):
     with pytest.raises(ConfigError, match=message):
         Lidar(**{field: value})
+
+
+# -- agent classes and POIs some agents do not sense (issue 33) ---------------------------------
+
+CLASSES = """
+[domain]
+n_req = 1
+[[agents]]
+name = "rover"
+count = 2
+sensor = {{ kind = "lidar", radius = 10.0, empty = -1.0, channels = "by-class" }}
+[[agents]]
+name = "uav"
+captures = false
+sensor = {{ kind = "lidar", radius = 10.0, empty = -1.0, channels = "by-class" }}
+[[pois]]
+value = 2.0
+{poi}
+"""
+
+
+def _class_scan(positions, poi, poi_rule=""):
+    domain = DomainConfig.from_toml(CLASSES.format(poi=poi_rule))
+    world = RoverWorld(domain, 1)
+    obs = world.reset([np.random.default_rng(0)], StartOverrides(
+        rover_positions=np.asarray(positions, dtype=float), rover_headings=np.zeros(3),
+        poi_positions=np.asarray([poi], dtype=float)))  # fmt: skip
+    return world, obs[0]
+
+
+def test_channels_by_class_hand_worked():
+    # rover 0 at the origin facing +x: rover 1 dead ahead at 2 (rover block, sector 2),
+    # the UAV dead left at 3 (UAV block, sector 3), the POI of value 2 dead right at 1
+    _, obs = _class_scan([(0, 0), (2, 0), (0, 3)], (0, -1))
+    expected = [-1, -1, 0.25, -1, -1, -1, -1, 1 / 9, -1, 2.0, -1, -1]
+    np.testing.assert_allclose(obs[0], expected, rtol=1e-7)
+
+
+def test_hidden_pois_and_their_sense_radius():
+    rule = 'visible_to = ["uav"]\nsense_radius = 4.0'
+    _, obs = _class_scan([(0, 0), (20, 0), (0, 1)], (0, -1), rule)
+    assert (obs[0, 8:] == -1).all()  # the rover does not sense the hidden POI
+    assert obs[2, 8:].max() == pytest.approx(2.0 / 4.0)  # the UAV at distance 2 does
+    _, obs = _class_scan([(0, 0), (20, 0), (0, 4)], (0, -1), rule)
+    assert (obs[2, 8:] == -1).all()  # 5 from the UAV: beyond the POI's sense radius
+
+
+def test_a_captured_poi_disappears_from_the_next_step():
+    world, obs = _class_scan([(0, 0), (20, 0), (0, 5)], (0, -1), 'disappear = "captured"')
+    assert world.G[0] == 2.0 and obs[0, 8:].max() > 0  # captured at reset, still sensed
+    obs = world.step(np.zeros((1, 3, 2)))[0]
+    assert (obs[:, 8:] == -1).all() and obs[0, 7] > 0  # nobody senses it; the UAV is seen
+
+
+def test_only_a_class_aware_sensor_hides_pois():
+    text = CLASSES.format(poi='visible_to = ["uav"]').replace(
+        'sensor = { kind = "lidar", radius = 10.0, empty = -1.0, channels = "by-class" }',
+        'sensor = { kind = "density" }', 1)  # fmt: skip
+    with pytest.raises(ConfigError, match="agents.0..sensor: .density. cannot hide POIs"):
+        DomainConfig.from_toml(text)
+    with pytest.raises(ConfigError, match="pois.0..visible_to: unknown class 'uvs'"):
+        DomainConfig.from_toml(CLASSES.format(poi='visible_to = ["uvs"]'))
+
+
+def _class_oracle(positions, headings, classes, pois, values, rules, me, radius, d_min):
+    """Plain loops: agent ``me``'s by-class lidar readings (density composition, empty -1),
+    each POI sensed iff visible to its class and within its sense radius."""
+    n_classes = max(classes) + 1
+    channels = [[] for _ in range(4 * (n_classes + 1))]
+    x, y = positions[me]
+    objects = [(p, 1.0, 4 * classes[j]) for j, p in enumerate(positions) if j != me]
+    for p, v, (visible, sense) in zip(pois, values, rules, strict=True):
+        if classes[me] in visible:
+            objects.append((p, v, 4 * n_classes, sense))
+    for entry in objects:
+        (ox, oy), num, base = entry[:3]
+        d = math.hypot(ox - x, oy - y)
+        if d > radius or (len(entry) == 4 and d > entry[3]):
+            continue
+        bearing = (math.atan2(oy - y, ox - x) - headings[me] + math.pi) % (2 * math.pi)
+        channels[base + int(bearing / (math.pi / 2)) % 4].append(num / max(d, d_min) ** 2)
+    return [sum(t) if t else -1.0 for t in channels]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_random_class_scans_match_plain_loops(seed):
+    text = CLASSES.format(poi='visible_to = ["uav"]\n[[pois]]\nvalue = 1.0\nsense_radius = 3.0')
+    text = text.replace("count = 2", "count = 3").replace("n_req = 1", 'n_req = 1\nscenario = '
+                        '{ kind = "uniform", half_size = 4.0, min_separation = 1.0 }')  # fmt: skip
+    domain = DomainConfig.from_toml(text)
+    world = RoverWorld(domain, 2)
+    world.reset([np.random.default_rng([seed, e]) for e in range(2)])
+    rng = np.random.default_rng(seed)
+    for _ in range(8):
+        obs = world.step(rng.uniform(-1, 1, (2, 4, 2)))
+    classes, rules = [0, 0, 0, 1], [({1}, math.inf), ({0, 1}, 3.0)]
+    for e in range(2):
+        for me in range(4):
+            expected = _class_oracle(world.rover_positions[e], world.rover_headings[e],
+                                     classes, world.poi_positions[e], world.poi_values[e],
+                                     rules, me, 10.0, domain.d_min)  # fmt: skip
+            np.testing.assert_allclose(obs[e, me], expected, rtol=2e-6)
+    assert (obs > 0).any() and (obs == -1).any()
+    to_hidden = np.linalg.norm(
+        world.rover_positions[:, :3] - world.poi_positions[:, None, 0], axis=-1
+    )
+    assert (to_hidden <= 10.0).any()  # a rover would have sensed the hidden POI

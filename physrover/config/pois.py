@@ -15,7 +15,11 @@ With them, each table is one POI, in order, and may set:
   its predecessors were captured without rover i;
 - ``score_at``: ``"any"`` (Eq. 11's max over the scored steps: the paper's, and the lab's
   ``sequential`` constraint) or ``"final"`` (only the last scored state counts: the lab's
-  ``final`` constraint).
+  ``final`` constraint);
+- what senses it (scoring is unchanged; the lidar applies these, the density sensor
+  cannot): ``visible_to``, the agent classes that sense it (the lab's hidden POIs are
+  visible to its UAVs only), ``sense_radius``, the distance within which it is sensed, and
+  ``disappear = "captured"``, no longer sensed once captured (the earlier lab domain's).
 
 The scenario still places the POIs; ``poi_values`` is derived from the tables (values may
 repeat there). The compiled scoring is :func:`physrover.domain.kernels.score_team`.
@@ -24,11 +28,13 @@ repeat there). The compiled scoring is :func:`physrover.domain.kernels.score_tea
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import ClassVar
 
-from physrover.config.base import ConfigBase, check, check_choice, coerce_tables
+from physrover.config.base import ConfigBase, check, check_choice, coerce_tables, did_you_mean
 
 SCORE_AT = ("any", "final")
+DISAPPEAR = ("never", "captured")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,6 +53,13 @@ class PoiRule(ConfigBase):
     """Indices of earlier POIs captured at an earlier step before this one counts."""
     score_at: str = "any"
     """"any" scored step (Eq. 11) or only the "final" one."""
+    visible_to: tuple[str, ...] = ()
+    """The agent classes that sense it (empty: every class); the lab's hidden POIs are
+    ``["uav"]``."""
+    sense_radius: float = math.inf
+    """It is sensed only within this distance, world units (and the sensor's radius)."""
+    disappear: str = "never"
+    """"never", or "captured": no longer sensed once captured (scoring is unchanged)."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -57,6 +70,15 @@ class PoiRule(ConfigBase):
         check(0 <= radius < float("inf"), "capture_radius",
               f"must be >= d_min (0: d_cap), got {radius}")  # fmt: skip
         check_choice(self.score_at, SCORE_AT, "score_at")
+        check(self.sense_radius > 0, "sense_radius", f"must be > 0, got {self.sense_radius}")
+        check_choice(self.disappear, DISAPPEAR, "disappear")
+
+    @property
+    def hides(self) -> bool:
+        """Whether some agent may not sense it (``visible_to``, ``sense_radius``,
+        ``disappear``): only a class-aware sensor (the lidar) can apply that."""
+        return bool(self.visible_to) or math.isfinite(self.sense_radius) or (
+            self.disappear != "never")  # fmt: skip
 
 
 def coerce_pois(value) -> tuple[PoiRule, ...]:
@@ -82,6 +104,18 @@ def check_pois(domain) -> None:
                   f"must list earlier POIs (indices < {k}), got {list(rule.after)}")  # fmt: skip
             final = f"POI {j} is scored at the final state only, so POI {k} could never count"
             check(pois[j].score_at == "any", f"pois[{k}].after", final)
+        names = [c.name for c in domain.agents] or ["rover"]
+        for name in rule.visible_to:
+            check(name in names, f"pois[{k}].visible_to",
+                  f"unknown class {name!r}{did_you_mean(name, names)}; classes: "
+                  f"{', '.join(names)}")  # fmt: skip
+    if any(rule.hides for rule in pois):
+        sensors = [(f"agents[{c}].sensor", a.sensor or domain.sensor)
+                   for c, a in enumerate(domain.agents)] or [("sensor", domain.sensor)]  # fmt: skip
+        for where, sensor in sensors:
+            check(hasattr(sensor, "observe_class"), where,
+                  f"{sensor.kind!r} cannot hide POIs (visible_to, sense_radius, disappear); "
+                  'use kind = "lidar"')  # fmt: skip
 
 
 def pois_table(pois: tuple[PoiRule, ...]) -> list[dict]:
@@ -89,4 +123,4 @@ def pois_table(pois: tuple[PoiRule, ...]) -> list[dict]:
     return [rule.to_dict() for rule in pois]
 
 
-__all__ = ["SCORE_AT", "PoiRule", "check_pois", "coerce_pois", "pois_table"]
+__all__ = ["DISAPPEAR", "SCORE_AT", "PoiRule", "check_pois", "coerce_pois", "pois_table"]

@@ -25,6 +25,12 @@ sensor's convention); ``"world"`` from the +x axis whatever the heading, sector 
 [0, 360/n) degrees counter-clockwise (the lab's ``l2a``: ``atan2`` in degrees, +360 if
 negative, ``int(angle / (360 / n))``, 360 -> 0).
 
+``channels = "by-class"`` gives each agent class (``[[agents]]``) its own block of
+sectors, then the POIs' (the lab's SmartLidar: ``[rovers | UAVs | POIs]``). A class senses
+only the POIs visible to it (``[[pois]] visible_to``), each within its ``sense_radius``,
+and none that ``disappear`` once captured (from the step after the capture): what a class
+senses is its :class:`SensingView`, which the world passes to :meth:`Lidar.observe_class`.
+
 Terms are added rovers by index, then POIs, in float64, as the density sensor adds them,
 so ``lidar`` with ``compose = "density"``, ``bearing = "heading"``, ``empty = 0`` and the
 inverse-square measure is the density sensor bit for bit (a test; up to float64 rounding
@@ -36,7 +42,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 
@@ -46,6 +52,7 @@ from physrover.domain.sense_kernels import sector
 from physrover.domain.sensors import Sensor, register_sensor
 
 COMPOSE = ("density", "average", "closest")
+CHANNELS = ("agents-pois", "by-class")
 MEASURES = ("inverse-square", "linear")
 BEARINGS = ("heading", "world")
 
@@ -70,6 +77,9 @@ class Lidar(Sensor):
     """The reading of a sector with no object in it (the lab's default: -1)."""
     bearing: str = "heading"
     """Sectors relative to the rover's "heading" or fixed in the "world" frame."""
+    channels: str = "agents-pois"
+    """"agents-pois": [agents | POIs], 2 x sectors; "by-class": one block of sectors per
+    agent class in [[agents]] order, then the POIs' (the lab's SmartLidar)."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -78,6 +88,7 @@ class Lidar(Sensor):
         check_choice(self.compose, COMPOSE, "compose")
         check_choice(self.measure, MEASURES, "measure")
         check_choice(self.bearing, BEARINGS, "bearing")
+        check_choice(self.channels, CHANNELS, "channels")
         check(self.measure != "linear" or math.isfinite(self.radius), "measure",
               '"linear" is 1 - d / radius: give a finite radius')  # fmt: skip
         check(math.isfinite(self.empty), "empty", f"must be finite, got {self.empty}")
@@ -86,16 +97,73 @@ class Lidar(Sensor):
     def dim(self) -> int:
         return 2 * self.sectors
 
+    def size(self, domain) -> int:
+        """Observations per agent in ``domain`` (a DomainConfig): by class, a block per
+        class and the POIs'."""
+        if self.channels == "by-class":
+            return (max(len(domain.agents), 1) + 1) * self.sectors
+        return self.dim
+
     @property
     def low(self) -> float:
         """The observation space's lower bound: terms are >= 0, empty sectors read
         ``empty``."""
         return min(0.0, self.empty)
 
+    def view(self, domain, c: int) -> SensingView:
+        """What class ``c`` of ``domain`` (a DomainConfig; c = 0 without ``[[agents]]``)
+        senses through this lidar: its channels and the POIs' rules (``[[pois]]``)."""
+        n, k = self.sectors, domain.n_pois
+        classes = domain.agents
+        agent_class = np.repeat(np.arange(len(classes)), [a.count for a in classes]) if (
+            classes) else np.zeros(domain.n_rovers, dtype=np.int64)  # fmt: skip
+        by_class = self.channels == "by-class"
+        agent_base = (agent_class * n if by_class else np.zeros_like(agent_class)).astype(int)
+        poi_base = max(len(classes), 1) * n if by_class else n
+        name = classes[c].name if classes else "rover"
+        pois = domain.pois
+        if not pois:
+            return SensingView(agent_base, poi_base, np.ones(k, bool), np.full(k, math.inf),
+                               np.zeros(k, bool))  # fmt: skip
+        visible = np.array([not p.visible_to or name in p.visible_to for p in pois])
+        radius_sq = np.array([p.sense_radius**2 for p in pois], dtype=np.float64)
+        disappear = np.array([p.disappear == "captured" for p in pois])
+        return SensingView(agent_base, poi_base, visible, radius_sq, disappear)
+
     def observe(self, state, d_min: float, out: np.ndarray) -> None:
+        n_agents, n_pois = state.cos_h.shape[1], state.poi_positions.shape[1]
+        self.observe_class(state, d_min, out, SensingView.everything(n_agents, n_pois,
+                                                                     self.sectors))  # fmt: skip
+
+    def observe_class(self, state, d_min: float, out: np.ndarray, view: SensingView) -> None:
+        """:meth:`observe` as agents of one class see: the channels and POIs of ``view``."""
         radius_sq = self.radius * self.radius if math.isfinite(self.radius) else math.inf
         lidar(state, d_min * d_min, self.sectors, radius_sq, COMPOSE.index(self.compose),
-              MEASURES.index(self.measure), self.empty, self.bearing == "world", out)  # fmt: skip
+              MEASURES.index(self.measure), self.empty, self.bearing == "world",
+              *view, out)  # fmt: skip
+
+
+class SensingView(NamedTuple):
+    """What the agents of one class sense (:meth:`Lidar.observe_class`): each agent's
+    channel block, the POIs' block, which POIs the class sees, within what distance of
+    each, and which vanish once captured."""
+
+    agent_base: np.ndarray
+    """(R,) int64: the first channel of agent j's terms."""
+    poi_base: int
+    """The first channel of the POIs' terms."""
+    visible: np.ndarray
+    """(K,) bool: the POIs this class senses at all (``visible_to``)."""
+    poi_radius_sq: np.ndarray
+    """(K,) float64: a POI is sensed only within this squared distance (``sense_radius``)."""
+    disappear: np.ndarray
+    """(K,) bool: the POI is no longer sensed once captured (``disappear``)."""
+
+    @classmethod
+    def everything(cls, n_agents: int, n_pois: int, n_sectors: int) -> SensingView:
+        """Every agent in one block, every POI visible at any distance, none vanishing."""
+        return cls(np.zeros(n_agents, dtype=np.int64), n_sectors, np.ones(n_pois, bool),
+                   np.full(n_pois, math.inf), np.zeros(n_pois, bool))  # fmt: skip
 
 
 @jit
@@ -126,15 +194,18 @@ def _term(num, dist_sq, d_min_sq, radius_sq, measure):
 
 
 @jit
-def lidar(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world, obs):
-    """The lidar readings (E, R, 2 n_sectors) of every rover of ``state`` into ``obs``:
+def lidar(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world, agent_base,
+          poi_base, visible, poi_radius_sq, disappear, obs):  # fmt: skip
+    """The lidar readings (E, R, channels) of every rover of ``state`` into ``obs``:
     ``compose`` and ``measure`` are indices into :data:`COMPOSE` and :data:`MEASURES`,
-    ``radius_sq`` inf for no radius, ``world`` the world-frame bearing (module docstring)."""
+    ``radius_sq`` inf for no radius, ``world`` the world-frame bearing (module docstring);
+    the rest a :class:`SensingView`."""
     positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
     poi_positions, poi_values = state.poi_positions, state.poi_values
     n_teams, n_rovers = cos_h.shape
-    acc = np.zeros(2 * n_sectors)
-    count = np.zeros(2 * n_sectors, dtype=np.int64)
+    n_channels = obs.shape[2]
+    acc = np.zeros(n_channels)
+    count = np.zeros(n_channels, dtype=np.int64)
     for e in range(n_teams):
         for i in range(n_rovers):
             c, s = cos_h[e, i], sin_h[e, i]
@@ -145,13 +216,17 @@ def lidar(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world,
                 if j == i:
                     continue
                 if j < n_rovers:
-                    dx, dy, num, base = positions[e, j, 0] - xi, positions[e, j, 1] - yi, 1.0, 0
+                    dx, dy = positions[e, j, 0] - xi, positions[e, j, 1] - yi
+                    num, base, within = 1.0, agent_base[j], radius_sq
                 else:
                     k = j - n_rovers
+                    if not visible[k] or (disappear[k] and state.captured[e, k]):
+                        continue
                     dx, dy = poi_positions[e, k, 0] - xi, poi_positions[e, k, 1] - yi
-                    num, base = poi_values[e, k], n_sectors
+                    num, base = poi_values[e, k], poi_base
+                    within = min(radius_sq, poi_radius_sq[k])
                 dist_sq = dx * dx + dy * dy
-                if dist_sq > radius_sq:
+                if dist_sq > within:
                     continue
                 if world:
                     q = _world_sector(dx, dy, n_sectors)
@@ -159,7 +234,7 @@ def lidar(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world,
                     q = sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
                 _add(acc, count, base + q, _term(num, dist_sq, d_min_sq, radius_sq, measure),
                      compose)  # fmt: skip
-            for q in range(2 * n_sectors):
+            for q in range(n_channels):
                 if count[q] == 0:
                     obs[e, i, q] = empty
                 elif compose == 1:
@@ -168,4 +243,4 @@ def lidar(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world,
                     obs[e, i, q] = acc[q]
 
 
-__all__ = ["BEARINGS", "COMPOSE", "MEASURES", "Lidar", "lidar"]
+__all__ = ["BEARINGS", "CHANNELS", "COMPOSE", "MEASURES", "Lidar", "SensingView", "lidar"]

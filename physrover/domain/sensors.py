@@ -89,6 +89,13 @@ class Sensor(Component):
         raise NotImplementedError
 
 
+def sensor_size(sensor, domain) -> int:
+    """Observations per agent of ``sensor`` in ``domain``: its ``size(domain)`` where it
+    depends on the domain (a lidar's channels by class), else its ``dim``."""
+    size = getattr(sensor, "size", None)
+    return int(size(domain)) if size is not None else int(sensor.dim)
+
+
 def register_sensor(cls: type[Sensor], *, replace: bool = False) -> type[Sensor]:
     """Register the sensor class ``cls`` under ``cls.kind`` (usable as a decorator)."""
     return SENSORS.register_class(cls, Sensor, "kind", replace=replace)

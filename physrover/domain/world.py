@@ -39,9 +39,10 @@ from physrover.config import DomainConfig
 from physrover.core.registry import DYNAMICS
 from physrover.domain.kernels import ideal_step_flat, score
 from physrover.domain.poi_rules import PoiRules
-from physrover.domain.roles import class_rows
+from physrover.domain.roles import class_sensors
 from physrover.domain.scenarios import StartState
 from physrover.domain.scoring import difference, start_episode
+from physrover.domain.sensors import sensor_size
 from physrover.domain.state import WorldState
 
 ACTION_DIM = 2
@@ -127,11 +128,11 @@ class RoverWorld:
         self.n_rovers = config.n_rovers
         self.n_pois = config.n_pois
         self.sensor = config.sensor
-        rows = class_rows(config) if config.agents else []
-        self.class_sensors = [(r, c.sensor or config.sensor)
-                              for r, c in zip(rows, config.agents, strict=True)]  # fmt: skip
-        """With ``[[agents]]``: (rows of the class, its sensor) per class, in order."""
-        dims = [sensor.dim for _, sensor in self.class_sensors] or [self.sensor.dim]
+        self.class_sensors = class_sensors(config)
+        """With ``[[agents]]`` or POIs some agents may not sense: (rows of the class, its
+        sensor, what it senses, a :class:`~physrover.domain.lidar.SensingView` or None)
+        per class, in order."""
+        dims = [sensor_size(s, config) for _, s, _ in self.class_sensors] or [self.sensor.dim]
         self.obs_dim = int(max(dims))
         """Observations per agent: the largest class's (a smaller class's are zero-padded)."""
         self.dynamics = DYNAMICS[config.motion](config, self.n_teams)
@@ -279,10 +280,14 @@ class RoverWorld:
         """Each class's observations through its own sensor, in its rows' first columns;
         the columns past a class's size are 0."""
         obs[:] = 0.0
-        for rows, sensor in self.class_sensors:
-            scratch = np.empty((self.n_teams, self.n_rovers, sensor.dim), dtype=np.float32)
-            sensor.observe(self.state, self.config.d_min, scratch)
-            obs[:, rows, : sensor.dim] = scratch[:, rows]
+        for rows, sensor, view in self.class_sensors:
+            size = sensor_size(sensor, self.config)
+            scratch = np.empty((self.n_teams, self.n_rovers, size), dtype=np.float32)
+            if view is None:
+                sensor.observe(self.state, self.config.d_min, scratch)
+            else:
+                sensor.observe_class(self.state, self.config.d_min, scratch, view)
+            obs[:, rows, :size] = scratch[:, rows]
 
     @property
     def fused(self) -> bool:

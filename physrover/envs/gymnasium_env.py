@@ -18,6 +18,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from physrover.config import DomainConfig
+from physrover.domain.sensors import sensor_size
 from physrover.domain.world import ACTION_DIM, RoverWorld, StartOverrides
 
 ENV_ID = "physrover/Rover-v0"
@@ -50,7 +51,7 @@ def team_spaces(config: DomainConfig) -> tuple[spaces.Box, spaces.Box]:
     sensors = [c.sensor or config.sensor for c in config.agents] or [config.sensor]
     low = min(getattr(sensor, "low", 0.0) for sensor in sensors)
     high = max(getattr(sensor, "high", np.inf) for sensor in sensors)
-    n_obs = max(sensor.dim for sensor in sensors)  # agent classes: the widest class's
+    n_obs = max(sensor_size(sensor, config) for sensor in sensors)  # classes: the widest
     observation = spaces.Box(low, high, shape=(*shape, n_obs), dtype=np.float32)
     action = spaces.Box(-1.0, 1.0, shape=(*shape, ACTION_DIM), dtype=np.float32)
     return observation, action

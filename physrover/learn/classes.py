@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from physrover.domain.roles import class_rows
+from physrover.domain.sensors import sensor_size
 from physrover.learn.policies import PolicyLayout
 
 
@@ -29,7 +30,7 @@ class ClassLayouts:
 
     def __init__(self, hidden: int, domain):
         self.rows = class_rows(domain)
-        dims = [(c.sensor or domain.sensor).dim for c in domain.agents]
+        dims = [sensor_size(c.sensor or domain.sensor, domain) for c in domain.agents]
         self.layouts = [PolicyLayout(hidden, d) for d in dims]
         self.hidden = hidden
         self.n_in = max(dims)
@@ -75,7 +76,7 @@ class MixedTeamPolicy:
 def team_layout(hidden: int, domain) -> PolicyLayout | ClassLayouts:
     """The policies' layout of ``domain``'s team (module docstring)."""
     if not domain.agents:
-        return PolicyLayout(hidden, domain.sensor.dim)
+        return PolicyLayout(hidden, sensor_size(domain.sensor, domain))
     return ClassLayouts(hidden, domain)
 
 
