@@ -113,3 +113,14 @@ def test_a_mixed_run_resumes_bit_identically_and_renders(tmp_path):
 def test_gradient_trainers_refuse_classes():
     with pytest.raises(ConfigError, match="agents: mappo trains teams of the paper's rovers"):
         RunConfig.from_toml(MIXED.replace("[learn]", '[learn]\nmethod = "mappo"'))
+
+
+def test_the_study_sweep_loads_with_every_run_valid(tmp_path):
+    from physrover.experiment.sweep import Sweep
+
+    sweep = Sweep.load("mixed-team")
+    runs = list(sweep.runs(tmp_path))
+    assert len(runs) == 6 * 2 * 10
+    domain = sweep.base.domain
+    assert [a.name for a in domain.agents] == ["rover", "uav"] and domain.n_rovers == 6
+    assert all(p.visible_to == ("uav",) for p in domain.pois)
