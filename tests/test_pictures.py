@@ -314,3 +314,24 @@ def test_a_crowd_of_a_thousand_is_dots_of_one_colour_under_visible_pois():
     for centre in np.round(tf(env.unwrapped.world.poi_positions[0])).astype(int):
         pixel = tuple(frame[centre[1], centre[0]])
         assert pixel in (POI_FREE[::-1], POI_CAPTURED[::-1])  # drawn over the crowd
+
+
+def test_agents_that_do_not_capture_wear_a_diamond():
+    """Issue 33: a UAV (a class that does not capture) is drawn with a diamond around its
+    body in its colour, 2 ROVER_PX from its centre; a rover is not."""
+    from physrover.domain.world import RoverWorld, StartOverrides
+    from physrover.viz.render import ROVER_PX, RenderConfig, Transform, draw_frame, world_state
+
+    domain = DomainConfig(n_req=1, agents=[{"name": "rover"},
+                                           {"name": "uav", "captures": False}])  # fmt: skip
+    world = RoverWorld(domain, 1)
+    world.reset([np.random.default_rng(0)], StartOverrides(
+        rover_positions=[(-5.0, 0.0), (5.0, 0.0)], rover_headings=[0.0, 0.0]))  # fmt: skip
+    state, render = world_state(world, 0), RenderConfig()
+    tf = Transform.fit_states([state], domain, render)
+    frame = draw_frame(state, domain, render, tf)
+    for i, wears in ((0, False), (1, True)):
+        x, y = np.round(tf(state.positions[-1, i : i + 1])[0]).astype(int)
+        top = frame[y - 2 * ROVER_PX - 1 : y - 2 * ROVER_PX + 2, x - 1 : x + 2].reshape(-1, 3)
+        colour = np.array(rover_rgb(i))
+        assert (np.abs(top.astype(int) - colour).sum(1) < 60).any() == wears

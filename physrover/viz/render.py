@@ -42,6 +42,7 @@ import numpy as np
 from physrover.config import ConfigBase, DomainConfig, check
 from physrover.config.domain import extent_of
 from physrover.domain.obstacles import box_corners
+from physrover.viz.classes import class_legend, mark_classes, poi_rule_label
 from physrover.viz.video import VideoError, VideoWriter
 
 BACKGROUND = (246, 246, 246)  # BGR
@@ -329,12 +330,14 @@ def draw_frame(
     ring_px = max(1, int(tf.scale * domain.d_cap))
     _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain,
                  render.ids)  # fmt: skip
+    mark_classes(img, tf, state.positions[-1], domain, ROVER_PX, rover_colour)
     if state.positions.shape[1] > CROWD:
         _draw_pois(img, tf, state, domain)
     # POI labels on top of the rovers: the value and the rovers in range / n_req.
     counts = state.poi_counts
     for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
-        _text(img, f"{value:g}", (x + 12, y - 10), 0.45, TEXT, halo=True)
+        _text(img, f"{value:g} {poi_rule_label(domain, k)}", (x + 12, y - 10), 0.45, TEXT,
+              halo=True)  # fmt: skip
         n_req = domain.n_req_per_poi[k]
         met = counts[k] >= n_req
         text, thickness = f"{counts[k]}/{n_req}", 2 if met else 1
@@ -343,14 +346,10 @@ def draw_frame(
         _text(img, text, (x - w // 2, y + ring_px + h + 5), 0.5, colour, thickness, halo=True)
     _draw_clump_inset(img, state.positions[-1], state.headings, tf, domain)
     # HUD.
-    motion = domain.motion
-    if motion == "physics":
-        motion += f" (collisions {'on' if domain.physics.collisions else 'off'})"
-    lines = [
-        (f"step {state.step}/{domain.steps}   G {state.G:g}", 0.55),
-        (f"n_req {domain.n_req}   {motion}", 0.55),
-        ("POI: its value above right; k/n_req below: rovers in reach / needed", 0.4),
-    ]
+    collisions = f" (collisions {'on' if domain.physics.collisions else 'off'})"
+    motion = domain.motion + (collisions if domain.motion == "physics" else "")
+    lines = [(f"step {state.step}/{domain.steps}   G {state.G:g}", 0.55),
+             (f"n_req {domain.n_req}   {motion}", 0.55), *class_legend(domain)]  # fmt: skip
     for j, (text, size) in enumerate(lines):
         _text(img, text, (10, 20 + 20 * j), size, TEXT)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)

@@ -1,0 +1,57 @@
+"""What a video shows of agent classes and POIs with rules (``[[agents]]``, ``[[pois]]``).
+
+- Agents of a class that counts toward captures are drawn as the paper's rovers (filled
+  discs); agents of a class that does not (the lab's UAVs) get a diamond around the disc,
+  in their colour.
+- The HUD's third line is a legend: each class's name, count and whether it captures.
+- A POI hidden from some classes is labelled with the classes that see it (``sees: uav``);
+  an ordered POI with the POIs it waits for (``after 0``).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def mark_classes(img, tf, now: np.ndarray, domain, radius_px: int, colour) -> None:
+    """Diamonds around the agents (pixels ``now``, (R, 2) world positions) of classes that
+    do not capture; ``colour(i)`` is agent i's colour."""
+    start = 0
+    for agent_class in domain.agents:
+        rows = range(start, start + agent_class.count)
+        start += agent_class.count
+        if agent_class.captures:
+            continue
+        size = 2 * radius_px
+        for i in rows:
+            x, y = tf(now[i : i + 1])[0]
+            diamond = np.array([[x, y - size], [x + size, y], [x, y + size], [x - size, y]])
+            cv2.polylines(img, [np.round(diamond).astype(np.int32)], True, colour(i), 2,
+                          cv2.LINE_AA)  # fmt: skip
+
+
+def class_legend(domain) -> list[tuple[str, float]]:
+    """The HUD's third line (text, size): the classes' legend, or for the paper's team how
+    to read a POI."""
+    if not domain.agents:
+        return [("POI: its value above right; k/n_req below: rovers in reach / needed", 0.4)]
+    parts = [f"{c.name} x{c.count} ({'captures, disc' if c.captures else 'diamond'})"
+             for c in domain.agents]  # fmt: skip
+    return [("classes: " + "   ".join(parts), 0.4)]
+
+
+def poi_rule_label(domain, k: int) -> str:
+    """A short label of POI k's rules (who sees it, what it waits for), or ''."""
+    if not domain.pois:
+        return ""
+    rule = domain.pois[k]
+    parts = []
+    if rule.visible_to:
+        parts.append("sees: " + ",".join(rule.visible_to))
+    if rule.after:
+        parts.append("after " + ",".join(map(str, rule.after)))
+    return "  ".join(parts)
+
+
+__all__ = ["class_legend", "mark_classes", "poi_rule_label"]
