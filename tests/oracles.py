@@ -502,14 +502,17 @@ def select_team_elites_loops(elite_genomes, elite_fitness, elite_G, population, 
 
 
 def score_rules_loops(positions, poi_positions, poi_values, radius, n_req, after, final,
-                      scored_steps, removed=None, counted=None):  # fmt: skip
+                      scored_steps, removed=None, counted=None, require=None,
+                      classes=None):  # fmt: skip
     """G of one team's episode under POI rules, rescored from positions with plain loops.
 
     ``positions`` (T + 1, R, 2) at every step, ``poi_positions`` (K, 2), ``poi_values``
     (K,), per POI its ``radius``, coupling ``n_req``, predecessors ``after`` (lists of
     indices) and ``final`` (counts only at the last scored step); ``scored_steps`` the steps
     that count, in order; rover ``removed`` left out of every count (D's counterfactual),
-    or a set of (t, i) left out of step t's; only the agents ``counted`` (default all) count.
+    or a set of (t, i) left out of step t's; only the agents ``counted`` (default all) count;
+    a POI with ``require[k]`` ({class index: count}) needs that many of each class (agent
+    i's class ``classes[i]``), whoever counts otherwise.
     Returns (G, first capture step per POI, -1 if none).
     """
     n_pois = len(poi_values)
@@ -518,17 +521,24 @@ def score_rules_loops(positions, poi_positions, poi_values, radius, n_req, after
         for k in range(n_pois):
             if first[k] >= 0 or (final[k] and t != scored_steps[-1]):
                 continue
-            n = 0
+            typed = require is not None and require[k]
+            n, by_class = 0, {}
             for i in range(len(positions[t])):
                 dx = poi_positions[k][0] - positions[t][i][0]
                 dy = poi_positions[k][1] - positions[t][i][1]
                 gone = (t, i) in removed if isinstance(removed, set) else i == removed
-                if counted is not None and not counted[i]:
+                if counted is not None and not counted[i] and not typed:
                     gone = True
                 if not gone and dx * dx + dy * dy <= radius[k] * radius[k]:  # Eq. 13
                     n += 1
+                    if typed:
+                        by_class[classes[i]] = by_class.get(classes[i], 0) + 1
             ready = all(0 <= first[j] < t for j in after[k])
-            if n >= n_req[k] and ready:
+            if typed:
+                met = all(by_class.get(c, 0) >= need for c, need in require[k].items())
+            else:
+                met = n >= n_req[k]
+            if met and ready:
                 first[k] = t
     G = sum(poi_values[k] for k in range(n_pois) if first[k] >= 0)
     return G, first
@@ -564,7 +574,8 @@ def classes_step(positions, headings, actions, classes, names):
     return new_positions, new_headings
 
 
-def indirect_difference_loops(positions, score_args, influence_radius, counted, timescale):
+def indirect_difference_loops(positions, score_args, influence_radius, counted, timescale,
+                              **typed):  # fmt: skip
     """ID (``timescale`` "trajectory") or ID-step ("step") of one team's agents by plain
     loops: influence from the (T + 1, R, 2) ``positions`` at the scored steps, then each
     agent's removal set rescored with :func:`score_rules_loops` (``score_args``: its
@@ -580,7 +591,7 @@ def indirect_difference_loops(positions, score_args, influence_radius, counted, 
             and math.dist(positions[t][u], positions[t][k]) <= influence_radius[u]
         )
 
-    G = score_rules_loops(positions, *score_args, counted=counted)[0]
+    G = score_rules_loops(positions, *score_args, counted=counted, **typed)[0]
     credit = []
     for a in range(n):
         removed = {(t, a) for t in steps}
@@ -594,6 +605,7 @@ def indirect_difference_loops(positions, score_args, influence_radius, counted, 
                     near = [u for u in range(n) if influences(t, u, k)]
                     if near and near[0] == a:
                         removed.add((t, k))
-        G_without = score_rules_loops(positions, *score_args, removed=removed, counted=counted)
+        G_without = score_rules_loops(positions, *score_args, removed=removed, counted=counted,
+                                      **typed)  # fmt: skip
         credit.append(G - G_without[0])
     return credit

@@ -9,6 +9,7 @@ from physrover.config import DomainConfig, LearnConfig
 from physrover.domain.credit import CREDITS
 from physrover.domain.influence import replay_captures
 from physrover.domain.kernels import score
+from physrover.domain.poi_rules import PoiRules
 from physrover.domain.world import RoverWorld, StartOverrides
 
 ROVER_AND_TWO_UAVS = """
@@ -100,8 +101,8 @@ def test_replay_with_nothing_removed_is_the_episode():
     removed = np.zeros((5, 2, world.config.steps + 1, 6), dtype=bool)
     removed[:, 1, :, 3] = True  # set 1: rover 3's whole trajectory, D's counterfactual
     out = np.empty((5, 2, 4), dtype=bool)
-    replay_captures(world.state.in_range, removed, world.n_req, np.zeros((4, 4), bool),
-                    np.zeros(4, bool), world.config.steps, out)  # fmt: skip
+    rules = PoiRules.build(world.config, 5, always=True)
+    replay_captures(world.state.in_range, removed, world.n_req, rules, out)
     np.testing.assert_array_equal(out[:, 0], world.state.captured)
     np.testing.assert_array_equal(out[:, 1], world.state.captured_without[:, 3])
 
@@ -115,7 +116,7 @@ scenario = {{ kind = "uniform", half_size = 6.0, min_separation = 1.0 }}
 value = 1.0
 [[pois]]
 value = 2.0
-n_req = 3
+require = {{ rover = 1, uav = 1 }}
 [[pois]]
 value = 3.0
 after = [0]
@@ -156,10 +157,13 @@ def test_random_episodes_credit_as_the_oracle(seed, timescale):
                       [domain.d_cap] * 4, domain.n_req_per_poi, [list(p.after) for p in pois],
                       [p.score_at == "final" for p in pois], list(range(last + 1)))  # fmt: skip
         expected = indirect_difference_loops(world.position_history[:, e].tolist(),
-                                             score_args, influence, counted, timescale)  # fmt: skip
+                                             score_args, influence, counted, timescale,
+                                             require=[{}, {0: 1, 1: 1}, {}, {}],
+                                             classes=[0] * 4 + [1] * 2)  # fmt: skip
         assert credit[e].tolist() == expected
         differs += int((credit[e] != world.D[e]).any())
     assert world.G.max() > 0 and differs > 0  # the UAVs earned something D does not give
+    assert world.state.captured[:, 1].any()  # the typed POI (a rover and a UAV) was captured
 
 
 def test_the_credits_are_feedback_names():

@@ -213,7 +213,7 @@ def test_rules_that_mirror_the_paper_give_the_paper_episode():
 
 def test_d_plus_plus_refuses_ordered_and_final_pois():
     ordered = DomainConfig(pois=CHAIN)
-    with pytest.raises(ConfigError, match="D\\+\\+ is not defined for POIs with after"):
+    with pytest.raises(ConfigError, match="D\\+\\+ is not defined for POIs with after, require"):
         CREDITS["D++"].check(ordered)
     CREDITS["D++"].check(DomainConfig(pois=[{"value": 1.0, "capture_radius": 2.0}]))
     with pytest.raises(ConfigError, match="feedback: D\\+\\+ is not defined"):
@@ -248,3 +248,62 @@ def test_the_ccea_trains_on_ruled_pois_and_resumes_bit_identically(tmp_path):
     train(None, part, resume=True, generations=5, progress=False)
     assert_same_run(full, part)
     assert "[[pois]]" in (full / "config.toml").read_text()
+
+
+TYPED = """
+[domain]
+n_req = 1
+[[agents]]
+name = "rover"
+count = 2
+[[agents]]
+name = "uav"
+captures = false
+[[pois]]
+value = 3.0
+require = { rover = 1, uav = 1 }
+[[pois]]
+value = 1.0
+"""
+
+
+def test_a_typed_poi_needs_each_class_it_names():
+    pois = [(0.0, 0.0), (20.0, 0.0)]
+
+    def typed(paths):
+        domain = DomainConfig.from_toml(TYPED).replace(steps=max(len(paths) - 1, 1))
+        world = RoverWorld(domain, 1)
+        world.reset([np.random.default_rng(0)], StartOverrides(
+            rover_positions=np.asarray(paths[0], dtype=float), rover_headings=np.zeros(3),
+            poi_positions=np.asarray(pois)))  # fmt: skip
+        for t, positions in enumerate(paths[1:], start=1):
+            world.state.rover_positions[0] = positions
+            score(world.state, domain.d_cap, world.n_req, t, world.poi_rules)
+        return world
+
+    # two rovers but no UAV, then the UAV alone: never both classes at one step
+    world = typed([[(1, 0), (0, 1), FAR], [FAR, FAR, (1, 0)]])
+    assert world.G[0] == 0.0
+    # a rover and the UAV at step 1: captured; the UAV counts for this POI only
+    world = typed([[FAR, FAR, FAR], [(1, 0), FAR, (0, 1)]])
+    assert world.G[0] == 3.0 and world.D[0].tolist() == [3.0, 0.0, 3.0]
+    assert world.state.in_range[1, 0, :, 0].tolist() == [True, False, True]
+    # at the plain POI (n_req 1) the UAV is never in range: it does not capture
+    world = typed([[FAR, FAR, (20, 0)]])
+    assert world.G[0] == 0.0 and not world.state.in_range[0, 0, 2, 1]
+
+
+@pytest.mark.parametrize(
+    ("rule", "message"),
+    [("require = { uvs = 1 }", "pois[0].require: unknown class 'uvs' (did you mean 'uav'?)"),
+     ("require = { uav = 2 }", "pois[0].require.uav: must be in [1, 1] (the class's count)"),
+     ("require = { uav = 0 }", "pois[0].require.uav: must be an integer >= 1, got 0"),
+     ("require = { uav = 1 }\nn_req = 1", "pois[0].require: give n_req or require, not both")],
+)  # fmt: skip
+def test_bad_typed_couplings_name_the_field(rule, message):
+    text = TYPED.replace("require = { rover = 1, uav = 1 }", rule)
+    with pytest.raises(ConfigError) as info:
+        DomainConfig.from_toml(text)
+    assert message in str(info.value)
+    assert DomainConfig.from_toml(DomainConfig.from_toml(TYPED).to_toml()).pois[0].require == {
+        "rover": 1, "uav": 1}  # fmt: skip

@@ -139,6 +139,8 @@ def check_agents(domain) -> None:
     )
     counted = sum(a.count for a in classes if a.captures)
     for k, n in enumerate(domain.n_req_per_poi):
+        if domain.pois and domain.pois[k].require:
+            continue  # a typed coupling: its counts are checked against its classes
         where = f"pois[{k}].n_req" if domain.pois else "n_req"
         check(n <= counted, where,
               f"must be in [1, {counted}] (agents of capturing classes), got {n}")  # fmt: skip

@@ -276,8 +276,8 @@ class DomainConfig(ConfigBase):
     def n_req_per_poi(self) -> tuple[int, ...]:
         """The coupling of each POI, in the order of ``poi_values``."""
         n_req = self.n_req
-        if self.pois:
-            return tuple(p.n_req or n_req for p in self.pois)
+        if self.pois:  # a typed POI's: the agents it requires in all
+            return tuple(sum(p.require.values()) or p.n_req or n_req for p in self.pois)
         return n_req if isinstance(n_req, tuple) else (n_req,) * len(self.poi_values)
 
     # -- flat names ------------------------------------------------------------------------

@@ -16,6 +16,8 @@ With them, each table is one POI, in order, and may set:
 - ``score_at``: ``"any"`` (Eq. 11's max over the scored steps: the paper's, and the lab's
   ``sequential`` constraint) or ``"final"`` (only the last scored state counts: the lab's
   ``final`` constraint);
+- ``require``: a typed coupling, ``{rover = 2, uav = 1}``: at least that many agents of
+  each named class at one step, instead of ``n_req`` (only their agents count for it);
 - what senses it (scoring is unchanged; the lidar applies these, the density sensor
   cannot): ``visible_to``, the agent classes that sense it (the lab's hidden POIs are
   visible to its UAVs only), ``sense_radius``, the distance within which it is sensed, and
@@ -29,7 +31,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import ClassVar
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 from physrover.config.base import ConfigBase, check, check_choice, coerce_tables, did_you_mean
 
@@ -60,6 +63,9 @@ class PoiRule(ConfigBase):
     """It is sensed only within this distance, world units (and the sensor's radius)."""
     disappear: str = "never"
     """"never", or "captured": no longer sensed once captured (scoring is unchanged)."""
+    require: Any = dataclasses.field(default_factory=dict)
+    """``{class = count}``: a typed coupling, at least ``count`` agents of each named class
+    at one step (instead of ``n_req``); only those classes' agents count for it."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -72,6 +78,14 @@ class PoiRule(ConfigBase):
         check_choice(self.score_at, SCORE_AT, "score_at")
         check(self.sense_radius > 0, "sense_radius", f"must be > 0, got {self.sense_radius}")
         check_choice(self.disappear, DISAPPEAR, "disappear")
+        require = self.require
+        check(isinstance(require, Mapping), "require",
+              f"expected a table {{class = count}}, got {require!r}")  # fmt: skip
+        for name, n in require.items():
+            check(isinstance(n, int) and not isinstance(n, bool) and n >= 1,
+                  f"require.{name}", f"must be an integer >= 1, got {n!r}")  # fmt: skip
+        object.__setattr__(self, "require", dict(require))
+        check(not (require and self.n_req), "require", "give n_req or require, not both")
 
     @property
     def hides(self) -> bool:
@@ -94,7 +108,7 @@ def check_pois(domain) -> None:
           "give each POI's coupling in its [[pois]] table, not as a list")  # fmt: skip
     for k, rule in enumerate(pois):
         n_req = rule.n_req or domain.n_req
-        check(1 <= n_req <= domain.n_rovers, f"pois[{k}].n_req",
+        check(bool(rule.require) or 1 <= n_req <= domain.n_rovers, f"pois[{k}].n_req",
               f"must be in [1, n_rovers={domain.n_rovers}], got {n_req}")  # fmt: skip
         radius = rule.capture_radius
         check(radius == 0 or radius >= domain.d_min, f"pois[{k}].capture_radius",
@@ -105,6 +119,13 @@ def check_pois(domain) -> None:
             final = f"POI {j} is scored at the final state only, so POI {k} could never count"
             check(pois[j].score_at == "any", f"pois[{k}].after", final)
         names = [c.name for c in domain.agents] or ["rover"]
+        sizes = {c.name: c.count for c in domain.agents} or {"rover": domain.n_rovers}
+        for name, n in rule.require.items():
+            check(name in names, f"pois[{k}].require",
+                  f"unknown class {name!r}{did_you_mean(name, names)}; classes: "
+                  f"{', '.join(names)}")  # fmt: skip
+            check(n <= sizes[name], f"pois[{k}].require.{name}",
+                  f"must be in [1, {sizes[name]}] (the class's count), got {n}")  # fmt: skip
         for name in rule.visible_to:
             check(name in names, f"pois[{k}].visible_to",
                   f"unknown class {name!r}{did_you_mean(name, names)}; classes: "
@@ -120,7 +141,11 @@ def check_pois(domain) -> None:
 
 def pois_table(pois: tuple[PoiRule, ...]) -> list[dict]:
     """The ``[[pois]]`` tables of ``pois``, as TOML writes them."""
-    return [rule.to_dict() for rule in pois]
+    tables = [rule.to_dict() for rule in pois]
+    for table in tables:  # TOML has no empty inline table to write
+        if not table["require"]:
+            del table["require"]
+    return tables
 
 
 __all__ = ["DISAPPEAR", "SCORE_AT", "PoiRule", "check_pois", "coerce_pois", "pois_table"]

@@ -65,11 +65,11 @@ class DPlusPlus(Credit):
         return d_plus_plus(world.state, world.n_req)
 
     def check(self, domain) -> None:
-        """D++'s partners complete couplings at any step: not defined for ordered (``after``)
-        or final-state POIs."""
-        ruled = any(p.after or p.score_at != "any" for p in domain.pois)
-        check(not ruled, "feedback", 'D++ is not defined for POIs with after or score_at = '
-              '"final" ([[pois]])')  # fmt: skip
+        """D++'s partners complete couplings at any step: not defined for ordered (``after``),
+        typed (``require``) or final-state POIs."""
+        ruled = any(p.after or p.score_at != "any" or p.require for p in domain.pois)
+        check(not ruled, "feedback", 'D++ is not defined for POIs with after, require or '
+              'score_at = "final" ([[pois]])')  # fmt: skip
 
 
 class IndirectDifference(Credit):

@@ -35,7 +35,8 @@ from __future__ import annotations
 import numpy as np
 
 from physrover.core.compiled import jit
-from physrover.domain.kernels import predecessors_before
+from physrover.domain.kernels import coupling_met, predecessors_before
+from physrover.domain.poi_rules import PoiRules
 from physrover.domain.scoring import team_score
 
 TIMESCALES = ("trajectory", "step")
@@ -75,25 +76,29 @@ def removal_sets(phi: np.ndarray, timescale: str) -> np.ndarray:
 
 
 @jit
-def replay_captures(in_range, removed, n_req, after, final_only, t_final, out):
+def replay_captures(in_range, removed, n_req, rules, out):
     """``out[e, a, k]``: POI k captured in team e's episode with the (t, i) of
-    ``removed[e, a]`` (T_s, R) left out of the counts (Eq. 12; ``after`` (K, K),
-    ``final_only`` (K,), ``t_final``: the POIs' rules, :mod:`physrover.domain.poi_rules`),
-    from the episode's record ``in_range`` (T + 1, E, R, K)."""
+    ``removed[e, a]`` (T_s, R) left out of the counts (Eq. 12 under the POIs' ``rules``, a
+    :class:`~physrover.domain.poi_rules.PoiRules`: the same :func:`coupling_met` and
+    order as the episode's scoring), from the episode's record ``in_range`` (T + 1, E, R,
+    K)."""
     n_teams, n_sets, n_steps, n_agents = removed.shape
     n_pois = in_range.shape[3]
     first = np.empty(n_pois, dtype=np.int64)
+    near = np.empty((n_agents, n_pois), dtype=np.bool_)
     for e in range(n_teams):
         for a in range(n_sets):
             first[:] = -1
             for t in range(n_steps):
+                for i in range(n_agents):
+                    for k in range(n_pois):
+                        near[i, k] = in_range[t, e, i, k] and not removed[e, a, t, i]
                 for k in range(n_pois):
-                    if first[k] >= 0 or (final_only[k] and t != t_final):
+                    if first[k] >= 0 or (rules.final_only[k] and t != rules.t_final):
                         continue
-                    count = 0
-                    for i in range(n_agents):
-                        count += np.int64(in_range[t, e, i, k] and not removed[e, a, t, i])
-                    if count >= n_req[k] and predecessors_before(after[k], first, t):
+                    if coupling_met(k, near, rules, n_req, -1) and predecessors_before(
+                        rules.after[k], first, t
+                    ):
                         first[k] = t
             for k in range(n_pois):
                 out[e, a, k] = first[k] >= 0
@@ -106,12 +111,9 @@ def indirect_difference(world, timescale: str = "trajectory") -> np.ndarray:
         raise ValueError(f"timescale must be one of {TIMESCALES}, got {timescale!r}")
     phi = influence(world)
     removed = removal_sets(phi, timescale)
-    rules, k = world.poi_rules, world.n_pois
-    after = rules.after if rules is not None else np.zeros((k, k), dtype=bool)
-    final = rules.final_only if rules is not None else np.zeros(k, dtype=bool)
-    t_final = rules.t_final if rules is not None else phi.shape[0] - 1
-    captured = np.empty((world.n_teams, world.n_rovers, k), dtype=bool)
-    replay_captures(world.state.in_range, removed, world.n_req, after, final, t_final, captured)
+    rules = world.poi_rules or PoiRules.build(world.config, world.n_teams, always=True)
+    captured = np.empty((world.n_teams, world.n_rovers, world.n_pois), dtype=bool)
+    replay_captures(world.state.in_range, removed, world.n_req, rules, captured)
     return world.G[:, None] - team_score(captured, world.state.poi_values)
 
 

@@ -101,7 +101,7 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None):
             dy = py - positions[e, i, 1]
             inside = dx * dx + dy * dy <= radius_sq  # Eq. 13
             if rules is not None:
-                inside = inside and rules.counted[i]
+                inside = inside and rules.counts_for[k, i]
             near[i, k] = inside
             n += np.int64(inside)
         count[k] = n
@@ -138,17 +138,34 @@ def _score_rules(e, k, state, rules, n_req, t):
     for the team and for each counterfactual without rover i; the counts are this step's."""
     if rules.final_only[k] and t != rules.t_final:
         return
-    count, near = state.poi_counts[e, k], state.in_range[t, e]
-    if count >= n_req[k] and not state.captured[e, k]:
+    near = state.in_range[t, e]
+    if coupling_met(k, near, rules, n_req, -1) and not state.captured[e, k]:
         if predecessors_before(rules.after[k], state.capture_step[e], t):
             state.capture_step[e, k] = t
             state.captured[e, k] = True
     for i in range(near.shape[0]):
-        if state.captured_without[e, i, k] or count - np.int64(near[i, k]) < n_req[k]:
+        if state.captured_without[e, i, k] or not coupling_met(k, near, rules, n_req, i):
             continue
         if predecessors_before(rules.after[k], rules.step_without[e, i], t):
             state.captured_without[e, i, k] = True
             rules.step_without[e, i, k] = t
+
+
+@jit
+def coupling_met(k, near, rules, n_req, without):
+    """Eq. 12 for POI k from one step's in-range agents ``near`` (R, K) bool, agent
+    ``without`` left out (-1: none): ``n_req[k]`` of them, or for a typed POI
+    (``require``) at least ``require[k, c]`` of each class c."""
+    typed = rules.typed[k]
+    for c in range(rules.require.shape[1] if typed else 1):
+        need = rules.require[k, c] if typed else n_req[k]
+        n = 0
+        for i in range(near.shape[0]):
+            if i != without and near[i, k] and (not typed or rules.agent_class[i] == c):
+                n += 1
+        if n < need:
+            return False
+    return True
 
 
 @jit

@@ -7,7 +7,9 @@ episode state they need, and :func:`physrover.domain.kernels.score_team` takes i
 captured at a scored step t (Eq. 12, generalised) iff
 
 - at least ``n_req[k]`` rovers are within ``capture_radius[k]`` of it (Eq. 13 with its own
-  radius; the in-range record ``in_range`` uses that radius too);
+  radius; the in-range record ``in_range`` uses that radius too), or for a typed POI
+  (``require = {class = count}``) at least that many agents of each named class (and only
+  they are in its range);
 - every POI j in ``after[k]`` was captured at a step before t (so a chain of POIs takes at
   least a step per link, and the order is decided by steps, not by POI index);
 - ``score_at[k]`` is ``"any"``, or t is the last scored step (``steps``, or ``steps - 1``
@@ -40,15 +42,24 @@ class PoiRules(NamedTuple):
     """(E, R, K) int64: the first step POI k was captured without rover i, -1 if none yet
     (episode state: reset by :meth:`start`)."""
     counted: np.ndarray
-    """(R,) bool: the agents that count toward couplings (their class ``captures``); the
-    others are never in range (``in_range`` False), so their D is 0."""
+    """(R,) bool: the agents that count toward couplings (their class ``captures``)."""
+    counts_for: np.ndarray
+    """(K, R) bool: the agents that count for POI k: ``counted``, or for a typed POI the
+    agents of the classes it requires; the others are never in its range (``in_range``
+    False), so a UAV's D is 0 wherever it does not count."""
+    typed: np.ndarray
+    """(K,) bool: the POI requires counts by class (``require``) instead of ``n_req``."""
+    require: np.ndarray
+    """(K, C) int64: agents of class c that a typed POI needs at one step (0: none)."""
+    agent_class: np.ndarray
+    """(R,) int64: each agent's class."""
 
     @classmethod
-    def build(cls, config, n_teams: int) -> PoiRules | None:
+    def build(cls, config, n_teams: int, always: bool = False) -> PoiRules | None:
         """The rules of ``config`` (a :class:`~physrover.config.DomainConfig`) for
         ``n_teams`` teams, or None without ``[[pois]]`` and ``[[agents]]`` (the paper's
-        POIs and rovers)."""
-        if not (config.pois or config.agents):
+        POIs and rovers) unless ``always`` (the rules that are the paper's)."""
+        if not (config.pois or config.agents or always):
             return None
         k = config.n_pois
         pois = config.pois or [None] * k
@@ -60,9 +71,19 @@ class PoiRules(NamedTuple):
         final = np.array([bool(p) and p.score_at == "final" for p in pois], dtype=bool)
         t_final = config.steps if config.scored_states == "all" else config.steps - 1
         without = np.full((n_teams, config.n_rovers, k), -1, dtype=np.int64)
-        counted = np.repeat([c.captures for c in config.agents] or [True],
-                            [c.count for c in config.agents] or [config.n_rovers])  # fmt: skip
-        return cls(radius * radius, after, final, int(t_final), without, counted.astype(bool))
+        classes = config.agents
+        counts = [c.count for c in classes] or [config.n_rovers]
+        counted = np.repeat([c.captures for c in classes] or [True], counts).astype(bool)
+        agent_class = np.repeat(np.arange(len(counts)), counts).astype(np.int64)
+        names = [c.name for c in classes] or ["rover"]
+        require = np.zeros((k, len(names)), dtype=np.int64)
+        for i, p in enumerate(pois):
+            for name, n in (p.require if p else {}).items():
+                require[i, names.index(name)] = n
+        typed = require.any(axis=1)
+        counts_for = np.where(typed[:, None], require[:, agent_class] > 0, counted[None, :])
+        return cls(radius * radius, after, final, int(t_final), without, counted, counts_for,
+                   typed, require, agent_class)  # fmt: skip
 
     def start(self) -> None:
         """Forget the counterfactual captures: the start of an episode."""
