@@ -222,3 +222,59 @@ def test_one_class_of_the_paper_rovers_is_the_paper_team():
     np.testing.assert_array_equal(a.state.in_range, b.state.in_range)
     np.testing.assert_array_equal(a.G, b.G)
     np.testing.assert_array_equal(a.D, b.D)
+
+
+SPAWNS = """
+[domain]
+n_req = 1
+[[agents]]
+name = "rover"
+count = 3
+[[agents]]
+name = "base"
+count = 2
+spawn = "fixed"
+spawn_positions = [[5.0, 5.0], [-5.0, 5.0]]
+[[agents]]
+name = "box"
+count = 4
+spawn = "box"
+spawn_box = [10.0, 12.0, -3.0, -1.0]
+[[agents]]
+name = "ring"
+count = 4
+spawn = "circle"
+spawn_circle = [1.0, 2.0, 7.0]
+"""
+
+
+def test_spawn_rules_place_each_class_after_the_scenario():
+    domain = DomainConfig.from_toml(SPAWNS)
+    world = RoverWorld(domain, 6)
+    world.reset([np.random.default_rng(e) for e in range(6)])
+    p = world.rover_positions
+    np.testing.assert_array_equal(p[:, 3:5], np.broadcast_to([[5, 5], [-5, 5]], (6, 2, 2)))
+    box = p[:, 5:9]
+    assert ((box[..., 0] >= 10) & (box[..., 0] <= 12) & (box[..., 1] >= -3)
+            & (box[..., 1] <= -1)).all() and len(np.unique(box[..., 0])) == 24  # fmt: skip
+    np.testing.assert_allclose(np.linalg.norm(p[:, 9:] - [1.0, 2.0], axis=-1), 7.0, rtol=1e-12)
+    # the "disc" class starts where the scenario puts it: as a team of 13 paper rovers would
+    paper = RoverWorld(DomainConfig(n_rovers=13, n_req=1), 6)
+    paper.reset([np.random.default_rng(e) for e in range(6)])
+    np.testing.assert_array_equal(p[:, :3], paper.rover_positions[:, :3])
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [("spawn_positions = [[5.0, 5.0], [-5.0, 5.0]]", "spawn_positions = [[5.0, 5.0]]",
+      "agents[1].spawn_positions: need one [x, y] per agent (2)"),
+     ("spawn_box = [10.0, 12.0, -3.0, -1.0]", "spawn_box = [10.0, 9.0, -3.0, -1.0]",
+      "agents[2].spawn_box: need [x_min, x_max, y_min, y_max] with min < max"),
+     ("spawn_circle = [1.0, 2.0, 7.0]", "spawn_circle = [1.0, 2.0]",
+      "agents[3].spawn_circle: need [cx, cy, r] with r > 0"),
+     ('spawn = "box"', 'spawn = "boxes"', "agents[2].spawn: must be one of disc, fixed, box")],
+)  # fmt: skip
+def test_bad_spawn_rules_name_the_field(old, new, message):
+    with pytest.raises(ConfigError) as info:
+        DomainConfig.from_toml(SPAWNS.replace(old, new))
+    assert message in str(info.value)

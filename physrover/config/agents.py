@@ -21,7 +21,9 @@ counts. A class sets:
 - ``bounds``: ``[x_min, x_max, y_min, y_max]``, a box its agents are clamped to after each
   move (idealised motion only);
 - ``influence_radius``: for the IndirectDifference credits (:mod:`physrover.domain.influence`),
-  how near its agents must be to a counted agent to be credited with its captures.
+  how near its agents must be to a counted agent to be credited with its captures;
+- ``spawn``: where its agents start, the scenario's ``"disc"``, ``"fixed"`` positions, a
+  ``"box"`` or a ``"circle"`` (the lab's spawn rules; :func:`physrover.domain.roles.spawn`).
 
 Agent classes run under idealised motion for now. The CCEA trains them
 (:mod:`physrover.learn.classes`); the gradient-based trainers do not.
@@ -43,6 +45,7 @@ from physrover.config.base import (
 )
 
 ACTIONS = ("body", "world")
+SPAWNS = ("disc", "fixed", "box", "circle")
 NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
 
 
@@ -73,6 +76,16 @@ class AgentClass(ConfigBase):
     influence_radius: float = 0.0
     """Its agents influence counted agents within this distance, world units, for the
     IndirectDifference credits ``ID`` and ``ID-step`` (0: nobody; the lab's: 5)."""
+    spawn: str = "disc"
+    """Where its agents start: "disc" (the scenario's spawn), "fixed" (``spawn_positions``),
+    "box" (uniform in ``spawn_box``) or "circle" (uniform on ``spawn_circle``)."""
+    spawn_positions: tuple[tuple[float, ...], ...] = ()
+    """"fixed": ``[[x, y], ...]``, one per agent."""
+    spawn_box: tuple[float, ...] = ()
+    """"box": ``[x_min, x_max, y_min, y_max]`` (the lab's random_uniform)."""
+    spawn_circle: tuple[float, ...] = ()
+    """"circle": ``[cx, cy, r]``: a point *on* the circle, its angle uniform (the lab's
+    random_circle)."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -88,6 +101,18 @@ class AgentClass(ConfigBase):
         b = self.bounds
         ok = not b or (len(b) == 4 and b[0] < b[1] and b[2] < b[3])
         check(ok, "bounds", f"need [x_min, x_max, y_min, y_max] with min < max, got {list(b)}")
+        check_choice(self.spawn, SPAWNS, "spawn")
+        if self.spawn == "fixed":
+            ok = len(self.spawn_positions) == self.count and all(
+                len(p) == 2 for p in self.spawn_positions)  # fmt: skip
+            check(ok, "spawn_positions", f"need one [x, y] per agent ({self.count}), got "
+                  f"{[list(p) for p in self.spawn_positions]}")  # fmt: skip
+        b = self.spawn_box
+        ok = self.spawn != "box" or (len(b) == 4 and b[0] < b[1] and b[2] < b[3])
+        check(ok, "spawn_box", f"need [x_min, x_max, y_min, y_max] with min < max, got {list(b)}")
+        c = self.spawn_circle
+        ok = self.spawn != "circle" or (len(c) == 3 and c[2] > 0)
+        check(ok, "spawn_circle", f"need [cx, cy, r] with r > 0, got {list(c)}")
 
     def table(self) -> dict[str, Any]:
         """The TOML table (the sensor as a sub-table; no sensor: the domain's)."""
@@ -151,4 +176,4 @@ def agents_table(classes: tuple[AgentClass, ...]) -> list[dict]:
     return [agent.table() for agent in classes]
 
 
-__all__ = ["ACTIONS", "AgentClass", "agents_table", "check_agents", "coerce_agents"]
+__all__ = ["ACTIONS", "SPAWNS", "AgentClass", "agents_table", "check_agents", "coerce_agents"]

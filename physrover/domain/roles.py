@@ -88,3 +88,23 @@ def class_sensors(config) -> list[tuple]:
         view = sensor.view(config, c) if hasattr(sensor, "view") else None
         out.append((rows, sensor, view))
     return out
+
+
+def spawn(positions: np.ndarray, config, rngs) -> None:
+    """Move the start ``positions`` (E, R, 2) of the classes with a spawn rule
+    (``[[agents]] spawn``), team e's from ``rngs[e]``, drawn after the scenario's (so the
+    scenario's draws, and a "disc" class's start, are what they are without rules)."""
+    for rows, agent in zip(class_rows(config), config.agents, strict=False):
+        n = rows.stop - rows.start
+        for e, rng in enumerate(rngs):
+            if agent.spawn == "fixed":
+                positions[e, rows] = np.asarray(agent.spawn_positions, dtype=float)
+            elif agent.spawn == "box":
+                x0, x1, y0, y1 = agent.spawn_box
+                positions[e, rows, 0] = rng.uniform(x0, x1, n)
+                positions[e, rows, 1] = rng.uniform(y0, y1, n)
+            elif agent.spawn == "circle":
+                cx, cy, r = agent.spawn_circle
+                angle = rng.uniform(0.0, 2.0 * math.pi, n)
+                positions[e, rows, 0] = cx + r * np.cos(angle)
+                positions[e, rows, 1] = cy + r * np.sin(angle)

@@ -39,7 +39,7 @@ from physrover.config import DomainConfig
 from physrover.core.registry import DYNAMICS
 from physrover.domain.kernels import ideal_step_flat, score
 from physrover.domain.poi_rules import PoiRules
-from physrover.domain.roles import class_sensors
+from physrover.domain.roles import class_sensors, spawn
 from physrover.domain.scenarios import StartState
 from physrover.domain.scoring import difference, start_episode
 from physrover.domain.sensors import sensor_size
@@ -204,14 +204,19 @@ class RoverWorld:
         start = scenario.draw(rngs, self.n_rovers, values)
         if not isinstance(start, StartState):
             raise TypeError(f"{type(scenario).__name__}.draw must return a StartState")
+        if self.config.agents:  # the classes' spawn rules, drawn after the scenario
+            start = start._replace(rover_positions=np.array(start.rover_positions, float))
+            spawn(start.rover_positions, self.config, rngs)
         if scenario.redraw == "episode":
             return start
         if scenario.redraw == "never":
             if self._fixed_start is None:
                 rng = np.random.default_rng(scenario.layout_seed)
-                self._fixed_start = StartState(*(a[0] for a in scenario.draw([rng],
-                                                                             self.n_rovers,
-                                                                             values)))  # fmt: skip
+                fixed = scenario.draw([rng], self.n_rovers, values)
+                if self.config.agents:
+                    fixed = fixed._replace(rover_positions=np.array(fixed.rover_positions, float))
+                    spawn(fixed.rover_positions, self.config, [rng])
+                self._fixed_start = StartState(*(a[0] for a in fixed))
             shared, first = self.n_teams, self._fixed_start
         else:  # "generation": team 0's draw for every team but the fresh ones
             shared = self.n_teams - min(self.fresh_teams, self.n_teams - 1)
