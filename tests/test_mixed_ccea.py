@@ -124,3 +124,51 @@ def test_the_study_sweep_loads_with_every_run_valid(tmp_path):
     domain = sweep.base.domain
     assert [a.name for a in domain.agents] == ["rover", "uav"] and domain.n_rovers == 6
     assert all(p.visible_to == ("uav",) for p in domain.pois)
+
+
+def test_pettingzoo_names_agents_by_class_with_their_own_spaces():
+    pytest.importorskip("pettingzoo")
+    from pettingzoo.test import parallel_api_test
+
+    from physrover.envs.pettingzoo_env import RoverParallelEnv
+
+    env = RoverParallelEnv(config=DomainConfig.from_toml(MIXED.split("[learn]")[0]))
+    assert env.possible_agents == ["rover_0", "rover_1", "rover_2", "uav_0", "uav_1"]
+    assert env.observation_space("rover_0").shape == (8,)
+    assert env.observation_space("uav_1").shape == (6,)
+    parallel_api_test(env, num_cycles=30)
+    observations, _ = env.reset(seed=3)
+    team, _ = RoverEnv(config=env.config).reset(seed=3)
+    np.testing.assert_array_equal(observations["uav_0"], team[3, :6])
+    np.testing.assert_array_equal(observations["rover_2"], team[2])
+
+
+def test_torchrl_gives_each_class_a_group():
+    pytest.importorskip("torchrl")
+    import torch
+    from torchrl.envs.utils import check_env_specs
+
+    from physrover.envs import RoverTorchEnv
+
+    domain = DomainConfig.from_toml(MIXED.split("[learn]")[0])
+    env = RoverTorchEnv(3, domain)
+    assert env.group_map == {"rover": ["rover_0", "rover_1", "rover_2"],
+                             "uav": ["uav_0", "uav_1"]}  # fmt: skip
+    check_env_specs(env, seed=0)
+    env.set_seed(5)
+    td = env.reset()
+    assert td["rover", "observation"].shape == (3, 3, 8)
+    assert td["uav", "observation"].shape == (3, 2, 6)
+    # the same observations as the vector env's rows, unpadded; actions go to their agents
+    from physrover.envs import RoverVectorEnv
+
+    vector = RoverVectorEnv(3, config=domain)
+    obs, _ = vector.reset(seed=5)
+    np.testing.assert_array_equal(td["uav", "observation"].numpy(), obs[:, 3:, :6])
+    actions = np.random.default_rng(0).uniform(-1, 1, (3, 5, 2)).astype(np.float32)
+    td["rover", "action"] = torch.from_numpy(actions[:, :3])
+    td["uav", "action"] = torch.from_numpy(actions[:, 3:])
+    out = env.step(td)["next"]
+    obs, *_ = vector.step(actions)
+    np.testing.assert_array_equal(out["rover", "observation"].numpy(), obs[:, :3])
+    assert out["uav", "reward"].shape == (3, 2, 1)

@@ -22,6 +22,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from physrover.domain.sensors import sensor_size
+
 
 class Roles(NamedTuple):
     """Per-agent constants of R agents in C classes (module docstring)."""
@@ -108,3 +110,19 @@ def spawn(positions: np.ndarray, config, rngs) -> None:
                 angle = rng.uniform(0.0, 2.0 * math.pi, n)
                 positions[e, rows, 0] = cx + r * np.cos(angle)
                 positions[e, rows, 1] = cy + r * np.sin(angle)
+
+
+def agent_names(config) -> list[str]:
+    """Each agent's name: ``CLASS_j``, j counted within its class (``rover_i`` for the
+    paper's team): the PettingZoo agents and TorchRL's group members."""
+    if not config.agents:
+        return [f"rover_{i}" for i in range(config.n_rovers)]
+    return [f"{c.name}_{j}" for c in config.agents for j in range(c.count)]
+
+
+def agent_obs_sizes(config) -> list[int]:
+    """Each agent's observation size: its class's sensor's (the world pads to the widest)."""
+    if not config.agents:
+        return [sensor_size(config.sensor, config)] * config.n_rovers
+    return [sensor_size(c.sensor or config.sensor, config) for c in config.agents
+            for _ in range(c.count)]  # fmt: skip

@@ -17,6 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from physrover.config import DomainConfig
+from physrover.domain.roles import agent_names, agent_obs_sizes
 from physrover.domain.world import StartOverrides
 from physrover.envs.gymnasium_env import RoverEnv, resolve_config
 
@@ -51,12 +52,16 @@ class RoverParallelEnv(ParallelEnv):
     ## Agents
     ``possible_agents = ["rover_0", ..., "rover_{R-1}"]``; agent i is row i of the wrapped
     env's arrays. ``agents`` is every rover from ``reset`` until the step limit, then empty.
+    With agent classes (``[[agents]]``) the names are ``CLASS_j``, j counted within the
+    class (``rover_0 .. rover_3, uav_0, uav_1``), in team order.
 
     ## Observation Space
     Per agent the rover's row of ``RoverEnv``'s (R, n_obs) observation, with the sensor's
     bounds: with the paper's sensor ``Box(0, inf, (8,), float32)``, rover density in its
     quadrants 0-3 (Eq. 15) then POI value density in quadrants 0-3 (Eq. 16). ``state()`` is
     the R rows concatenated, ``state_space`` ``Box(0, inf, (R * 8,), float32)``.
+    With agent classes an agent's observation is its class's sensor's (the wrapped env's
+    row without its padding), so classes differ in size; ``state()`` keeps the padded rows.
 
     ## Action Space
     Per agent ``Box(-1, 1, (2,), float32)``: a command in the rover's own frame (forward,
@@ -124,13 +129,13 @@ class RoverParallelEnv(ParallelEnv):
         self.config = self.env.config
         self.render_mode = render_mode
         team_obs = self.env.observation_space  # (R, n_obs), bounds from the sensor
-        n_rovers, obs_dim = team_obs.shape
-        self.possible_agents = [f"rover_{i}" for i in range(n_rovers)]
+        self.possible_agents = agent_names(self.config)  # CLASS_j with [[agents]]
+        self._sizes = agent_obs_sizes(self.config)  # each agent's class's observations
         self.agents: list[str] = []
         # One space object per agent, so seeding one agent's space leaves the others alone.
         self.observation_spaces = {
-            agent: spaces.Box(team_obs.low[i], team_obs.high[i], dtype=np.float32)
-            for i, agent in enumerate(self.possible_agents)
+            agent: spaces.Box(team_obs.low[i, :n], team_obs.high[i, :n], dtype=np.float32)
+            for i, (agent, n) in enumerate(zip(self.possible_agents, self._sizes, strict=True))
         }
         self.action_spaces = {
             agent: spaces.Box(-1.0, 1.0, shape=(self.env.action_space.shape[1],), dtype=np.float32)
@@ -150,7 +155,8 @@ class RoverParallelEnv(ParallelEnv):
     def _split(self, obs: np.ndarray, info: dict[str, Any]) -> tuple[dict, dict]:
         """Per-agent observations and infos from the team's (R, obs_dim) obs and its info."""
         self._obs = np.array(obs, dtype=np.float32)  # a copy: agents' rows never change later
-        observations = dict(zip(self.possible_agents, self._obs, strict=True))
+        rows = zip(self.possible_agents, self._obs, self._sizes, strict=True)
+        observations = {agent: row[:n] for agent, row, n in rows}
         infos = {}
         for i, agent in enumerate(self.possible_agents):
             infos[agent] = {

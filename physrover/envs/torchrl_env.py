@@ -13,7 +13,10 @@
   on the episode's last step, zeros before;
 
 and the done flags ``"done"``, ``"terminated"`` (always False) and ``"truncated"`` (after
-``steps`` steps), (E, 1) bool. All teams run in lock step, so a reset resets them all.
+``steps`` steps), (E, 1) bool. With agent classes (``[[agents]]``) there is one group per
+class, named after it (as VMAS gives heterogeneous agents groups of their own), each with
+its agents' observations at its class's size (``("uav", "observation")`` (E, 2, 12)).
+All teams run in lock step, so a reset resets them all.
 The batch moves between numpy and torch as whole arrays (``torch.from_numpy``): no Python
 loop over teams or rovers. Seeding: ``set_seed(s)``, then the next reset seeds team i with
 ``s + i``, as :class:`RoverVectorEnv` does; later resets continue the teams' generators.
@@ -29,6 +32,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
+from physrover.domain.roles import agent_names, agent_obs_sizes, class_rows
 from physrover.envs.gymnasium_env import RoverVectorEnv
 
 GROUP = "rover"
@@ -47,46 +51,56 @@ class RoverTorchEnv(EnvBase):
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
         self.config = self.vector_env.config
         E, R = num_envs, self.config.n_rovers
-        n_obs = self.vector_env.single_observation_space.shape[-1]
         self.n_rovers = R
-        f32 = torch.float32
-        self.full_observation_spec = Composite(
-            {GROUP: Composite(
-                {"observation": Unbounded((E, R, n_obs), dtype=f32, device=self.device),
-                 "info": Composite({"D": Unbounded((E, R), dtype=f32, device=self.device)},
-                                   shape=(E, R))},
-                shape=(E, R))},
-            shape=(E,),
-        )  # fmt: skip
-        self.full_action_spec = Composite(
-            {GROUP: Composite(
-                {"action": Bounded(-1.0, 1.0, (E, R, 2), dtype=f32, device=self.device)},
-                shape=(E, R))},
-            shape=(E,),
-        )  # fmt: skip
-        self.full_reward_spec = Composite(
-            {GROUP: Composite({"reward": Unbounded((E, R, 1), dtype=f32, device=self.device)},
-                              shape=(E, R))},
-            shape=(E,),
-        )  # fmt: skip
+        names, sizes = agent_names(self.config), agent_obs_sizes(self.config)
+        self.groups = [(c.name, rows, sizes[rows.start]) for c, rows in
+                       zip(self.config.agents, class_rows(self.config), strict=False)] or [
+            (GROUP, slice(0, R), sizes[0])]  # fmt: skip
+        """(name, rows of the team, observation size) of each group: one per agent class."""
+        f32, dev = torch.float32, self.device
+
+        def per_group(make) -> Composite:
+            return Composite({name: Composite(make(rows.stop - rows.start, n_obs),
+                                              shape=(E, rows.stop - rows.start))
+                              for name, rows, n_obs in self.groups}, shape=(E,))  # fmt: skip
+
+        self.full_observation_spec = per_group(
+            lambda n, n_obs: {
+                "observation": Unbounded((E, n, n_obs), dtype=f32, device=dev),
+                "info": Composite({"D": Unbounded((E, n), dtype=f32, device=dev)}, shape=(E, n)),
+            }
+        )
+        self.full_action_spec = per_group(
+            lambda n, _: {"action": Bounded(-1.0, 1.0, (E, n, 2), dtype=f32, device=dev)}
+        )
+        self.full_reward_spec = per_group(
+            lambda n, _: {"reward": Unbounded((E, n, 1), dtype=f32, device=dev)}
+        )
         flag = Categorical(2, (E, 1), dtype=torch.bool, device=self.device)
         self.full_done_spec = Composite(
             {"done": flag, "terminated": flag.clone(), "truncated": flag.clone()}, shape=(E,)
         )
         self._seed: int | None = None
-        self.group_map = {GROUP: [f"{GROUP}_{i}" for i in range(R)]}
+        self.group_map = {name: names[rows] for name, rows, _ in self.groups}
         """TorchRL's MARL convention (as ``VmasEnv.group_map``): group -> agent names."""
 
     def _tensor(self, array: np.ndarray) -> torch.Tensor:
         """A float32 tensor on the env's device, from the whole batch at once."""
         return torch.from_numpy(np.ascontiguousarray(array, dtype=np.float32)).to(self.device)
 
-    def _group(self, obs: np.ndarray, infos: dict) -> TensorDict:
-        """The group's (E, R) tensordict: observation and info."""
-        shape = (self.batch_size[0], self.n_rovers)
-        info = TensorDict({"D": self._tensor(infos["D"])}, batch_size=shape, device=self.device)
-        return TensorDict({"observation": self._tensor(obs), "info": info}, batch_size=shape,
-                          device=self.device)  # fmt: skip
+    def _groups(self, obs: np.ndarray, infos: dict) -> dict[str, TensorDict]:
+        """Each group's (E, n) tensordict: its agents' observations (its class's columns)
+        and info."""
+        out = {}
+        for name, rows, n_obs in self.groups:
+            shape = (self.batch_size[0], rows.stop - rows.start)
+            info = TensorDict({"D": self._tensor(infos["D"][:, rows])}, batch_size=shape,
+                              device=self.device)  # fmt: skip
+            observation = self._tensor(obs[:, rows, :n_obs])
+            out[name] = TensorDict(
+                {"observation": observation, "info": info}, batch_size=shape, device=self.device
+            )
+        return out
 
     def _flags(self, truncated: np.ndarray) -> dict:
         shape = (self.batch_size[0], 1)
@@ -100,16 +114,24 @@ class RoverTorchEnv(EnvBase):
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         seed, self._seed = self._seed, None  # a set seed seeds the next reset only
         obs, infos = self.vector_env.reset(seed=seed)
-        source = {GROUP: self._group(obs, infos), **self._flags(np.zeros(self.batch_size[0]))}
+        source = {**self._groups(obs, infos), **self._flags(np.zeros(self.batch_size[0]))}
         return TensorDict(source, batch_size=self.batch_size, device=self.device)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        action = tensordict.get((GROUP, "action")).detach().to("cpu").numpy()
+        action = np.concatenate(
+            [
+                tensordict.get((name, "action")).detach().to("cpu").numpy()
+                for name, _, _ in self.groups
+            ],
+            axis=1,
+        )  # team order
         obs, reward, _, truncated, infos = self.vector_env.step(action)
-        group = self._group(obs, infos)
+        groups = self._groups(obs, infos)
         team = self._tensor(reward)  # (E,): the increase of each team's G
-        group["reward"] = team.reshape(-1, 1, 1).expand(-1, self.n_rovers, 1).clone()
-        source = {GROUP: group, **self._flags(truncated)}
+        for name, rows, _ in self.groups:
+            n = rows.stop - rows.start
+            groups[name]["reward"] = team.reshape(-1, 1, 1).expand(-1, n, 1).clone()
+        source = {**groups, **self._flags(truncated)}
         return TensorDict(source, batch_size=self.batch_size, device=self.device)
 
     def _set_seed(self, seed: int | None) -> None:
