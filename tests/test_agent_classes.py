@@ -278,3 +278,35 @@ def test_bad_spawn_rules_name_the_field(old, new, message):
     with pytest.raises(ConfigError) as info:
         DomainConfig.from_toml(SPAWNS.replace(old, new))
     assert message in str(info.value)
+
+
+def test_derived_fields_are_never_silently_overridden():
+    domain = DomainConfig.from_toml(ROVERS_AND_UAVS)
+    with pytest.raises(ConfigError, match=r"n_rovers: is derived from the \[\[agents\]\] tables"):
+        domain.replace(n_rovers=5)
+    assert domain.replace(n_rovers=6) == domain  # the derived value itself is fine
+    for name in ("n_rovers", "domain.n_rovers"):
+        with pytest.raises(ConfigError, match=f"{name}: set"):
+            RunConfig(domain).with_overrides({name: 5})
+
+
+def test_class_names_that_the_torchrl_env_uses_are_reserved():
+    with pytest.raises(ConfigError, match="agents.0..name: 'done' is one of the TorchRL"):
+        DomainConfig.from_toml('[domain]\nn_req = 1\n[[agents]]\nname = "done"')
+
+
+def test_a_typed_poi_lets_a_non_capturing_class_count():
+    text = '[domain]\nn_req = 1\n[[agents]]\nname = "uav"\ncaptures = false\n'
+    domain = DomainConfig.from_toml(text + "[[pois]]\nrequire = { uav = 1 }")
+    assert domain.pois[0].require == {"uav": 1}
+
+
+def test_runs_that_differ_in_a_class_are_told_apart():
+    from physrover.analysis.curve_data import differing_fields
+    from physrover.config.roles import role_fields
+
+    one = DomainConfig.from_toml(ROVERS_AND_UAVS)
+    two = DomainConfig.from_toml(ROVERS_AND_UAVS.replace("count = 2", "count = 3"))
+    assert differing_fields([role_fields(one), role_fields(two)]) == [
+        "n_rovers", "uav.count"]  # fmt: skip
+    assert role_fields(DomainConfig()) == {}

@@ -58,6 +58,12 @@ def test_the_yaml_holds_every_domain_field_with_the_papers_values():
     assert physical == DomainConfig(motion="physics", physics={"collisions": True})
 
 
+def test_agent_classes_are_refused_with_the_reason():
+    with pytest.raises(ValueError, match="agents: BenchMARL tasks take the paper's rovers"):
+        PhysroverTask.ROVER_DOMAIN.get_task(
+            {"n_req": 1, "agents": [{"name": "rover", "count": 2}]})  # fmt: skip
+
+
 def test_a_bad_field_fails_when_the_task_is_made():
     with pytest.raises(ConfigError, match="n_req"):
         PhysroverTask.ROVER_DOMAIN.get_task({"n_rovers": 3, "n_req": 4})

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from physrover.config import ConfigError, DomainConfig, LearnConfig
+from physrover.config.roles import role_fields
 from physrover.core.stats import mean_ci
 from physrover.experiment.store import METRICS, load_run_config, read_metrics
 
@@ -123,7 +124,8 @@ def load_runs(
     configs = [load_run_config(path) for path in paths]
     all_fields = []
     for config in configs:
-        fields = {**config.domain.flat_dict(), **config.learn.to_dict()}
+        domain = config.domain  # with its [[agents]] and [[pois]] fields (uav.count ...)
+        fields = {**domain.flat_dict(), **role_fields(domain), **config.learn.to_dict()}
         if config.trainer is not None:  # a gradient-based run: its own table, by table.field
             section = config.trainer.section
             fields |= {f"{section}.{k}": v for k, v in config.trainer.to_dict().items()}

@@ -8,7 +8,8 @@ counts. A class sets:
 
 - ``name`` (``[a-z][a-z0-9_]*``, unique) and ``count``;
 - ``captures``: whether its agents count toward a POI's coupling (the lab's rovers do, its
-  UAVs do not; an agent that does not count has D = 0);
+  UAVs do not; an agent that does not count has D = 0, except at a typed POI, ``[[pois]]
+  require``, which counts exactly the classes it names);
 - ``action``: ``"body"``, the paper's (forward, left) in the agent's frame, or ``"world"``,
   the lab's ``dxdy`` (x, y) in the world frame;
 - ``max_speed``: the command's scale per component after clipping to [-1, 1] (the lab's
@@ -47,6 +48,8 @@ from physrover.config.base import (
 ACTIONS = ("body", "world")
 SPAWNS = ("disc", "fixed", "box", "circle")
 NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
+RESERVED = ("done", "terminated", "truncated", "next", "reward", "action", "observation")
+"""Names a class may not take: the TorchRL env's keys beside its groups."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,6 +94,8 @@ class AgentClass(ConfigBase):
         self._coerce_fields()
         check(bool(NAME.match(self.name)), "name",
               f"must match [a-z][a-z0-9_]* (it names agents), got {self.name!r}")  # fmt: skip
+        check(self.name not in RESERVED, "name", f"{self.name!r} is one of the TorchRL "
+              f"env's own keys; reserved: {', '.join(RESERVED)}")  # fmt: skip
         self.check_at_least(1, "count")
         check_choice(self.action, ACTIONS, "action")
         self.check_positive("max_speed")
@@ -157,8 +162,9 @@ def check_agents(domain) -> None:
             "agents",
             'agent classes need motion = "ideal" for now (physics: a later release)',
         )
+    typed = any(p.require for p in domain.pois)  # a typed POI counts the classes it names
     check(
-        any(a.captures for a in classes),
+        any(a.captures for a in classes) or typed,
         "agents",
         "no class counts toward captures (captures = true), so no POI can be captured",
     )

@@ -34,6 +34,7 @@ from physrover.config.base import (
 )
 from physrover.config.roles import (
     ROLE_TABLES,
+    check_derived_kept,
     check_derived_not_given,
     check_roles,
     derive_roles,
@@ -349,7 +350,9 @@ class DomainConfig(ConfigBase):
         for section, values in fields.items():
             if values:
                 parts[section] = parts[section].replace(**values)
-        return DomainConfig(**{**self.to_dict(), **own, **parts})
+        result = DomainConfig(**{**self.to_dict(), **own, **parts})
+        check_derived_kept(own, result)
+        return result
 
     def _component(self, section: str, value: Any):
         """The scenario or sensor ``value`` names; the current one for its own kind's name."""

@@ -134,7 +134,8 @@ def check_pois(domain) -> None:
         sensors = [(f"agents[{c}].sensor", a.sensor or domain.sensor)
                    for c, a in enumerate(domain.agents)] or [("sensor", domain.sensor)]  # fmt: skip
         for where, sensor in sensors:
-            check(hasattr(sensor, "observe_class"), where,
+            aware = hasattr(sensor, "view") and hasattr(sensor, "observe_class")
+            check(aware, where,
                   f"{sensor.kind!r} cannot hide POIs (visible_to, sense_radius, disappear); "
                   'use kind = "lidar"')  # fmt: skip
 

@@ -66,19 +66,53 @@ def check_derived_not_given(domain_table: Mapping[str, Any], data: Mapping[str, 
 
 
 def check_not_overridden(domain, name: str) -> None:
-    """``--set`` cannot set a role's tables, nor a field they derive."""
+    """``--set`` cannot set a role's tables, nor a field they derive (bare or
+    ``domain.``-qualified)."""
     derived = [DERIVED[r] for r in ROLE_TABLES if getattr(domain, r)]
-    check(name not in (*ROLE_TABLES, *derived), name,
+    field = name.removeprefix("domain.")
+    check(field not in (*ROLE_TABLES, *derived), name,
           "set [[pois]] and [[agents]] tables in a TOML file (a sweep's: [[base.pois]], "
           "[[base.agents]]); they give poi_values and n_rovers")  # fmt: skip
+
+
+def check_derived_kept(own: Mapping[str, Any], result) -> None:
+    """``DomainConfig.replace`` given a derived field (``n_rovers``, ``poi_values``) whose
+    value the roles of the ``result`` override: an error, not a silent change."""
+    for role, field in DERIVED.items():
+        if field in own and getattr(result, role):
+            given = own[field]
+            given = tuple(float(v) for v in given) if field == "poi_values" else given
+            check(given == getattr(result, field), field,
+                  f"is derived from the [[{role}]] tables ({getattr(result, field)}); change "
+                  "the tables instead")  # fmt: skip
+
+
+def role_fields(domain) -> dict[str, Any]:
+    """The roles' fields by name, for telling runs apart (``physrover curves``):
+    ``CLASS.FIELD`` (``uav.count``, ``uav.sensor.radius``) and ``pois[k].FIELD``, with the
+    fields they derive; empty for the paper's domain."""
+    out: dict[str, Any] = {}
+    if domain.agents or domain.pois:
+        out.update(n_rovers=domain.n_rovers, poi_values=domain.poi_values)
+    for agent in domain.agents:
+        for key, value in agent.table().items():
+            if key == "sensor":
+                out.update({f"{agent.name}.sensor.{k}": v for k, v in value.items()})
+            else:
+                out[f"{agent.name}.{key}"] = value
+    for k, table in enumerate(pois_table(domain.pois)):
+        out.update({f"pois[{k}].{key}": value for key, value in table.items()})
+    return out
 
 
 __all__ = [
     "DERIVED",
     "ROLE_TABLES",
+    "check_derived_kept",
     "check_derived_not_given",
     "check_not_overridden",
     "check_roles",
     "derive_roles",
+    "role_fields",
     "role_tables",
 ]

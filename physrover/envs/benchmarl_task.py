@@ -83,6 +83,9 @@ class PhysroverClass(TaskClass):
     def __init__(self, name: str, config: dict[str, Any]):
         super().__init__(name=name, config=config)
         self.domain = DomainConfig.from_dict(dict(config))
+        if self.domain.agents:  # its specs name the one group "rover"
+            raise ValueError("agents: BenchMARL tasks take the paper's rovers; agent classes "
+                             "train with the CCEA (physrover train)")  # fmt: skip
 
     def get_env_fun(self, num_envs: int, continuous_actions: bool, seed: int | None,
                     device: Any) -> typing.Callable[[], EnvBase]:  # fmt: skip

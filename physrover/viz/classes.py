@@ -4,6 +4,7 @@
   discs); agents of a class that does not (the lab's UAVs) get a diamond around the disc,
   in their colour.
 - The HUD's third line is a legend: each class's name, count and whether it captures.
+- A POI's capture ring has its own ``capture_radius``.
 - A POI hidden from some classes is labelled with the classes that see it (``sees: uav``);
   an ordered POI with the POIs it waits for (``after 0``).
 """
@@ -54,4 +55,11 @@ def poi_rule_label(domain, k: int) -> str:
     return "  ".join(parts)
 
 
-__all__ = ["class_legend", "mark_classes", "poi_rule_label"]
+def ring_pixels(tf, domain, k: int) -> int:
+    """The radius in pixels of POI k's capture ring: its own ``capture_radius`` or
+    ``d_cap``."""
+    own = domain.pois[k].capture_radius if domain.pois else 0.0
+    return max(1, int(tf.scale * (own or domain.d_cap)))
+
+
+__all__ = ["class_legend", "mark_classes", "poi_rule_label", "ring_pixels"]

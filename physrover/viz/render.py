@@ -42,7 +42,7 @@ import numpy as np
 from physrover.config import ConfigBase, DomainConfig, check
 from physrover.config.domain import extent_of
 from physrover.domain.obstacles import box_corners
-from physrover.viz.classes import class_legend, mark_classes, poi_rule_label
+from physrover.viz.classes import class_legend, mark_classes, poi_rule_label, ring_pixels
 from physrover.viz.video import VideoError, VideoWriter
 
 BACKGROUND = (246, 246, 246)  # BGR
@@ -260,12 +260,12 @@ def _draw_pois(img, tf: Transform, state, domain: DomainConfig) -> list:
     """The POIs: capture ring and a disc sized by value, grey, green once captured; returns
     their pixel centres."""
     aa = cv2.LINE_AA
-    vmax, ring_px = float(np.max(state.poi_values)), max(1, int(tf.scale * domain.d_cap))
+    vmax = float(np.max(state.poi_values))
     centres = [_pt(p) for p in tf(state.poi_positions)]
     for k, value in enumerate(state.poi_values):
         captured = 0 <= state.capture_step[k] <= state.step
         colour = POI_CAPTURED if captured else POI_FREE
-        cv2.circle(img, centres[k], ring_px, colour, 1, aa)
+        cv2.circle(img, centres[k], ring_pixels(tf, domain, k), colour, 1, aa)
         cv2.circle(img, centres[k], int(4 + 8 * value / vmax), colour, -1, aa)
     return centres
 
@@ -327,7 +327,6 @@ def draw_frame(
     _draw_obstacles(img, tf, domain.scenario)  # under everything else
     # POIs (rings, discs by value); the rovers' trails and bodies; a crowd's POIs on top.
     centres = _draw_pois(img, tf, state, domain)
-    ring_px = max(1, int(tf.scale * domain.d_cap))
     _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain,
                  render.ids)  # fmt: skip
     mark_classes(img, tf, state.positions[-1], domain, ROVER_PX, rover_colour)
@@ -343,7 +342,8 @@ def draw_frame(
         text, thickness = f"{counts[k]}/{n_req}", 2 if met else 1
         (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5, thickness)
         colour = POI_CAPTURED if met else TEXT
-        _text(img, text, (x - w // 2, y + ring_px + h + 5), 0.5, colour, thickness, halo=True)
+        below = y + ring_pixels(tf, domain, k) + h + 5
+        _text(img, text, (x - w // 2, below), 0.5, colour, thickness, halo=True)
     _draw_clump_inset(img, state.positions[-1], state.headings, tf, domain)
     # HUD.
     collisions = f" (collisions {'on' if domain.physics.collisions else 'off'})"
