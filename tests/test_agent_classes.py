@@ -81,8 +81,8 @@ def test_classes_round_trip_and_derive_the_team_size():
             "agents[0].sensor.kind: unknown sensor 'lidr' (did you mean 'lidar'?)",
         ),  # fmt: skip
         (
-            "[domain]\nn_req = 1\nmotion = 'physics'\n[[agents]]",
-            'agents: agent classes need motion = "ideal" for now',
+            "[domain]\nn_req = 1\nmotion = 'physics'\n[[agents]]\nbounds = [0, 1, 0, 1]",
+            'agents[0].bounds: bounds need motion = "ideal"',
         ),  # fmt: skip
     ],
 )
@@ -310,3 +310,49 @@ def test_runs_that_differ_in_a_class_are_told_apart():
     assert differing_fields([role_fields(one), role_fields(two)]) == [
         "n_rovers", "uav.count"]  # fmt: skip
     assert role_fields(DomainConfig()) == {}
+
+
+# -- classes under physical motion --------------------------------------------------------
+
+
+def test_world_frame_commands_become_the_bodies_setpoints():
+    from physrover.domain.physics_kernels import setpoints
+    from physrover.domain.roles import Roles, class_commands
+
+    domain = _domain(TWO.replace("bounds = [-10.0, 4.0, -10.0, 10.0]\n", "")).replace(
+        motion="physics")  # fmt: skip
+    world, _ = _world(domain, [(0, 0), (1, 1)], headings=[0.3, 2.0])  # the UAV within 3
+    actions = np.array([[[0.5, 0.2], [0.6, -0.4]]])
+    commands = class_commands(actions, world.state, Roles.build(domain))
+    target_v, heading = np.empty((1, 2, 2)), np.empty((1, 2))
+    setpoints(commands, world.state.rover_headings, world.state.cos_h, world.state.sin_h,
+              None, target_v, heading)  # fmt: skip
+    np.testing.assert_allclose(target_v[0, 1], [1.2, -0.8], atol=1e-12)  # speed 2, (x, y)
+    c, s = np.cos(0.3), np.sin(0.3)  # the rover: its own frame, speed 1
+    np.testing.assert_allclose(target_v[0, 0], [c * 0.5 - s * 0.2, s * 0.5 + c * 0.2],
+                               atol=1e-12)  # fmt: skip
+
+
+def test_a_gated_body_stays_at_rest():
+    domain = _domain(TWO.replace("bounds = [-10.0, 4.0, -10.0, 10.0]\n", "")).replace(
+        motion="physics")  # fmt: skip
+    world, _ = _world(domain, [(0, 0), (8, 0)])  # the UAV beyond 3: the rover may not move
+    for _ in range(5):
+        world.step(np.array([[[1.0, 0.0], [0.0, 1.0]]]))
+    np.testing.assert_array_equal(world.position_history[:6, 0, 0], np.zeros((6, 2)))
+    assert world.rover_positions[0, 1, 1] > 1.0  # the UAV flew up (+y), heading or not
+
+
+def test_one_class_of_the_paper_rovers_is_the_paper_team_under_physics():
+    paper = DomainConfig(n_req=2, motion="physics", n_rovers=6)
+    mirror = DomainConfig.from_toml('[domain]\nn_req = 2\nmotion = "physics"\n[[agents]]\n'
+                                    'name = "rover"\ncount = 6\n')  # fmt: skip
+    worlds = [RoverWorld(c, 2) for c in (paper, mirror)]
+    actions = np.random.default_rng(4).uniform(-1.2, 1.2, (20, 2, 6, 2))
+    for w in worlds:
+        w.reset([np.random.default_rng(e) for e in range(2)])
+        for a in actions:
+            w.step(a)
+    a, b = worlds
+    np.testing.assert_array_equal(a.position_history, b.position_history)
+    np.testing.assert_array_equal(a.observations, b.observations)

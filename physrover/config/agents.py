@@ -26,7 +26,9 @@ counts. A class sets:
 - ``spawn``: where its agents start, the scenario's ``"disc"``, ``"fixed"`` positions, a
   ``"box"`` or a ``"circle"`` (the lab's spawn rules; :func:`physrover.domain.roles.spawn`).
 
-Agent classes run under idealised motion for now. The CCEA trains them
+Under physical motion a class's speed, frame and gate shape its bodies' commands (its
+bodies and limits are ``[physics]``'s, per agent); ``bounds`` are idealised motion's. The
+CCEA trains them
 (:mod:`physrover.learn.classes`); the gradient-based trainers do not.
 """
 
@@ -157,11 +159,8 @@ def check_agents(domain) -> None:
             radius = getattr(agent.sensor or domain.sensor, "radius", math.inf)
             check(math.isfinite(radius), f"agents[{c}].moves_with_radius",
                   "the sensor's radius is inf; give a finite radius")  # fmt: skip
-        check(
-            domain.motion == "ideal",
-            "agents",
-            'agent classes need motion = "ideal" for now (physics: a later release)',
-        )
+        check(not agent.bounds or domain.motion == "ideal", f"agents[{c}].bounds",
+              'bounds need motion = "ideal" (a physical team: [physics] walls)')  # fmt: skip
     typed = any(p.require for p in domain.pois)  # a typed POI counts the classes it names
     check(
         any(a.captures for a in classes) or typed,

@@ -99,6 +99,7 @@ from physrover.domain.dynamics import Dynamics, register_dynamics
 from physrover.domain.kernels import heading_trig
 from physrover.domain.obstacles import box_corners
 from physrover.domain.physics_kernels import advance_compiled, setpoints, substep, wrap_angles
+from physrover.domain.roles import Roles, class_commands
 from physrover.domain.separation import separate
 
 _ROVER = 0b01
@@ -144,6 +145,7 @@ class PhysicsMotion(Dynamics):
         self.alpha_max = p.per_rover("max_torque", n) / self.moment
         max_speed = p.per_rover("max_speed", n)
         self.max_speed = max_speed if np.isfinite(max_speed).any() else None
+        self.roles = Roles.build(config)  # agent classes' speeds, frames and gates
         self.contact = self.radius[:, None] + self.radius[None, :]  # (R, R) contact distances
 
         self.offsets = self._team_offsets()  # (E, 1, 2) world origin of each team's cell
@@ -353,6 +355,8 @@ class PhysicsMotion(Dynamics):
         cfg, dt = self.config, self.dt
         shape = (self.n_teams, self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
+        if self.roles is not None:
+            actions = class_commands(actions, state, self.roles)
         setpoints(actions, state.rover_headings, state.cos_h, state.sin_h, self.max_speed,
                   target_v, target_heading)  # fmt: skip
         if self.uses_pymunk:

@@ -1,5 +1,6 @@
 """Agent classes as the compiled motion reads them (``[[agents]]``,
-:mod:`physrover.config.agents`).
+:mod:`physrover.config.agents`); under physical motion, :func:`class_commands` applies
+steps 1-3 below to the bodies' commands instead (step 4, bounds, is idealised only).
 
 :class:`Roles` holds each agent's class constants as arrays (agents in team order, a
 class's agents contiguous), and :func:`physrover.domain.kernels.move_team` takes it as its
@@ -22,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from physrover.domain.kernels import _gate_free
 from physrover.domain.sensors import sensor_size
 
 
@@ -126,3 +128,21 @@ def agent_obs_sizes(config) -> list[int]:
         return [sensor_size(config.sensor, config)] * config.n_rovers
     return [sensor_size(c.sensor or config.sensor, config) for c in config.agents
             for _ in range(c.count)]  # fmt: skip
+
+
+def class_commands(actions: np.ndarray, state, roles: Roles) -> np.ndarray:
+    """(E, R, 2) clipped commands as a physical body of each class takes them: the gate
+    (zero unless a ``moves_with`` agent is near, judged before the step), the class's
+    speed, and a world-frame (x, y) turned into the body frame of the current heading, so
+    that the physical model's setpoint (the idealised move, Eq. of ``kernels._move``) is
+    that (x, y). A gated body is commanded to rest; it brakes with its finite force."""
+    scale = roles.speed[None, :].repeat(actions.shape[0], 0)
+    for e in range(actions.shape[0]):
+        scale[e] *= _gate_free(e, state.rover_positions, roles)
+    out = actions * scale[..., None]
+    c, s = state.cos_h, state.sin_h
+    x, y = out[..., 0].copy(), out[..., 1].copy()
+    world = roles.world_frame[None, :]
+    out[..., 0] = np.where(world, c * x + s * y, x)
+    out[..., 1] = np.where(world, c * y - s * x, y)
+    return out
