@@ -21,15 +21,13 @@ comparisons as one family, Welch's t, Hedges' g, the fraction of seeds that lear
 from __future__ import annotations
 
 import argparse
-import csv
-from collections import defaultdict
 from pathlib import Path
 
 from physrover.analysis.tables import (
     compare_samples,
+    final_scores,
     holm_families,
-    markdown_header,
-    significance_cells,
+    write_significance,
 )
 
 COMPARISONS = [
@@ -50,9 +48,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", type=Path, help="runs.csv of physrover results")
     args = parser.parse_args()
-    scores = defaultdict(dict)  # (variant, n_req) -> {seed: final}
-    for row in csv.DictReader(args.runs.open()):
-        scores[(variant(row), row["n_req"])][row["seed"]] = float(row["final_G"])
+    scores = final_scores(args.runs, variant)  # (variant, n_req) -> {seed: final}
     comparisons = []
     for n_req in sorted({n for _, n in scores}, key=int):
         for a, b in COMPARISONS:
@@ -64,16 +60,8 @@ def main() -> None:
     if not comparisons:
         raise SystemExit(f"{args.runs}: no cell of the study has finished runs")
     holm_families(comparisons, lambda row: "all")
-    out = args.runs.parent
-    with open(out / "significance.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(comparisons[0]))
-        writer.writeheader()
-        writer.writerows(comparisons)
-    lines = [markdown_header("A", "B", "n_req")]
-    lines += [f"| {row['A']} | {row['B']} | {row['n_req']} | {significance_cells(row)} |"
-              for row in comparisons]  # fmt: skip
-    (out / "significance.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    lead = {k: k for k in ("A", "B", "n_req")}
+    print(write_significance(comparisons, args.runs.parent, lead), end="")
 
 
 if __name__ == "__main__":

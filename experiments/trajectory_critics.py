@@ -14,15 +14,13 @@ of every variant), Welch's t, Hedges' g and the fraction of seeds that learn at 
 from __future__ import annotations
 
 import argparse
-import csv
-from collections import defaultdict
 from pathlib import Path
 
 from physrover.analysis.tables import (
     compare_samples,
+    final_scores,
     holm_families,
-    markdown_header,
-    significance_cells,
+    write_significance,
 )
 
 BASELINE = "max-critic"
@@ -37,9 +35,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", type=Path, help="runs.csv of physrover results")
     args = parser.parse_args()
-    scores = defaultdict(dict)  # (variant, n_req) -> {seed: final}
-    for row in csv.DictReader(args.runs.open()):
-        scores[(variant(row), row["n_req"])][row["seed"]] = float(row["final_G"])
+    scores = final_scores(args.runs, variant)  # (variant, n_req) -> {seed: final}
     comparisons = []
     for (name, n_req), finals in sorted(scores.items()):
         base = scores.get((BASELINE, n_req), {})
@@ -49,16 +45,8 @@ def main() -> None:
         comparisons.append({"variant": name, "n_req": n_req, **compare_samples(
             [finals[s] for s in seeds], [base[s] for s in seeds])})  # fmt: skip
     holm_families(comparisons, lambda row: "all")
-    out = args.runs.parent
-    with open(out / "significance.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(comparisons[0]))
-        writer.writeheader()
-        writer.writerows(comparisons)
-    lines = [markdown_header("variant (A) vs max critic (B)", "n_req")]
-    lines += [f"| {row['variant']} | {row['n_req']} | {significance_cells(row)} |"
-              for row in comparisons]  # fmt: skip
-    (out / "significance.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    lead = {"variant (A) vs max critic (B)": "variant", "n_req": "n_req"}
+    print(write_significance(comparisons, args.runs.parent, lead), end="")
 
 
 if __name__ == "__main__":
