@@ -43,3 +43,12 @@ def assert_same_run(a, b, exact_snapshots=False):
     assert champions == found if exact_snapshots else set(champions) <= set(found)
     for name in champions:
         assert (a / "champions" / name).read_bytes() == (b / "champions" / name).read_bytes()
+
+
+def play_alike(worlds, actions) -> None:
+    """Reset each RoverWorld of ``worlds`` with team e's generator seeded e, then step it
+    through the same (T, E, R, 2) ``actions``: episodes two configs should agree on."""
+    for world in worlds:
+        world.reset([np.random.default_rng(e) for e in range(world.n_teams)])
+        for a in actions:
+            world.step(a)

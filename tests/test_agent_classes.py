@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import play_alike
 from oracles import classes_step
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
@@ -212,10 +213,7 @@ def test_one_class_of_the_paper_rovers_is_the_paper_team():
     worlds = [RoverWorld(c, 3) for c in (paper, mirror)]
     assert worlds[0].fused and not worlds[1].fused
     actions = np.random.default_rng(3).uniform(-1.2, 1.2, (paper.steps, 3, 15, 2))
-    for w in worlds:
-        w.reset([np.random.default_rng(e) for e in range(3)])
-        for a in actions:
-            w.step(a)
+    play_alike(worlds, actions)
     a, b = worlds
     for name in ("observations", "position_history", "heading_history"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
@@ -349,10 +347,7 @@ def test_one_class_of_the_paper_rovers_is_the_paper_team_under_physics():
                                     'name = "rover"\ncount = 6\n')  # fmt: skip
     worlds = [RoverWorld(c, 2) for c in (paper, mirror)]
     actions = np.random.default_rng(4).uniform(-1.2, 1.2, (20, 2, 6, 2))
-    for w in worlds:
-        w.reset([np.random.default_rng(e) for e in range(2)])
-        for a in actions:
-            w.step(a)
+    play_alike(worlds, actions)
     a, b = worlds
     np.testing.assert_array_equal(a.position_history, b.position_history)
     np.testing.assert_array_equal(a.observations, b.observations)

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import play_alike
 from gymnasium.utils.env_checker import check_env
 
 from physrover.config import ConfigError, DomainConfig
@@ -80,10 +81,7 @@ def test_density_composition_is_the_density_sensor_bit_for_bit(sectors, radius):
               for kind in ("density", "lidar")]  # fmt: skip
     rng = np.random.default_rng(sectors)
     actions = rng.uniform(-1, 1, (30, 5, 12, 2))
-    for w in worlds:
-        w.reset([np.random.default_rng(e) for e in range(5)])
-        for a in actions:
-            w.step(a)
+    play_alike(worlds, actions)
     np.testing.assert_array_equal(worlds[0].observations, worlds[1].observations)
     assert (worlds[1].observations > 0).mean() > 0.1  # not every sector empty
 

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import play_alike
 from oracles import score_rules_loops
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
@@ -198,10 +199,7 @@ def test_rules_that_mirror_the_paper_give_the_paper_episode():
     assert worlds[0].fused and not worlds[1].fused
     rng = np.random.default_rng(7)
     actions = rng.uniform(-1, 1, (paper.steps, 3, paper.n_rovers, 2))
-    for w in worlds:
-        w.reset([np.random.default_rng(e) for e in range(3)])
-        for a in actions:
-            w.step(a)
+    play_alike(worlds, actions)
     a, b = worlds
     np.testing.assert_array_equal(a.observations, b.observations)
     np.testing.assert_array_equal(a.position_history, b.position_history)

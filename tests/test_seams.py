@@ -13,6 +13,7 @@ from typing import ClassVar
 import gymnasium
 import numpy as np
 import pytest
+from conftest import play_alike
 from gymnasium.utils.env_checker import check_env
 
 from physrover import RoverEnv, RoverVectorEnv
@@ -230,10 +231,7 @@ def test_the_fused_step_equals_its_parts_called_in_turn():
     worlds = [RoverWorld(small.replace(motion=m), 6) for m in ("ideal", Unfused.name)]
     assert worlds[0]._fused and not worlds[1]._fused
     commands = np.random.default_rng(3).uniform(-1.2, 1.2, (50, 6, 15, 2))
-    for world in worlds:
-        world.reset([np.random.default_rng(e) for e in range(6)])
-        for a in commands:
-            world.step(a)
+    play_alike(worlds, commands)
     a, b = worlds
     assert a.G.max() > 0
     for name in ("observations", "actions", "position_history", "heading_history", "G", "D"):
