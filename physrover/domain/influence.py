@@ -37,6 +37,7 @@ import numpy as np
 from physrover.core.compiled import jit
 from physrover.domain.kernels import coupling_met, predecessors_before
 from physrover.domain.poi_rules import PoiRules
+from physrover.domain.roles import per_agent
 from physrover.domain.scoring import team_score
 
 TIMESCALES = ("trajectory", "step")
@@ -49,8 +50,7 @@ def influence(world) -> np.ndarray:
     rows = config.steps + 1 if world.scores_final_state else config.steps  # scored steps
     positions = world.position_history[:rows]  # (T_s, E, R, 2)
     n = world.n_rovers
-    radius = np.repeat([c.influence_radius for c in config.agents] or [0.0],
-                       [c.count for c in config.agents] or [n])  # fmt: skip
+    radius = per_agent(config, [c.influence_radius for c in config.agents], 0.0)
     counted = (world.poi_rules.counted if world.poi_rules is not None
                else np.ones(n, dtype=bool))  # fmt: skip
     offset = positions[:, :, :, None, :] - positions[:, :, None, :, :]

@@ -48,6 +48,7 @@ import numpy as np
 
 from physrover.config import check, check_choice
 from physrover.core.compiled import jit
+from physrover.domain.roles import agent_classes
 from physrover.domain.sense_kernels import sector
 from physrover.domain.sensors import Sensor, register_sensor
 
@@ -115,8 +116,7 @@ class Lidar(Sensor):
         senses through this lidar: its channels and the POIs' rules (``[[pois]]``)."""
         n, k = self.sectors, domain.n_pois
         classes = domain.agents
-        agent_class = np.repeat(np.arange(len(classes)), [a.count for a in classes]) if (
-            classes) else np.zeros(domain.n_rovers, dtype=np.int64)  # fmt: skip
+        agent_class = agent_classes(domain)
         by_class = self.channels == "by-class"
         agent_base = (agent_class * n if by_class else np.zeros_like(agent_class)).astype(int)
         poi_base = max(len(classes), 1) * n if by_class else n

@@ -26,6 +26,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from physrover.domain.roles import agent_classes, per_agent
+
 
 class PoiRules(NamedTuple):
     """The rules of K POIs for E teams of R rovers (module docstring)."""
@@ -72,9 +74,8 @@ class PoiRules(NamedTuple):
         t_final = config.steps if config.scored_states == "all" else config.steps - 1
         without = np.full((n_teams, config.n_rovers, k), -1, dtype=np.int64)
         classes = config.agents
-        counts = [c.count for c in classes] or [config.n_rovers]
-        counted = np.repeat([c.captures for c in classes] or [True], counts).astype(bool)
-        agent_class = np.repeat(np.arange(len(counts)), counts).astype(np.int64)
+        counted = per_agent(config, [c.captures for c in classes], True).astype(bool)
+        agent_class = agent_classes(config)
         names = [c.name for c in classes] or ["rover"]
         require = np.zeros((k, len(names)), dtype=np.int64)
         for i, p in enumerate(pois):

@@ -51,7 +51,7 @@ class Roles(NamedTuple):
         if not classes:
             return None
         names = [c.name for c in classes]
-        agent_class = np.repeat(np.arange(len(classes)), [c.count for c in classes])
+        agent_class = agent_classes(config)
         per_class = {
             "speed": [c.max_speed for c in classes],
             "world_frame": [c.action == "world" for c in classes],
@@ -59,8 +59,21 @@ class Roles(NamedTuple):
             "gate": [[n in c.moves_with for n in names] for c in classes],
             "gate_radius_sq": [gate_radius(c, config) ** 2 for c in classes],
         }
-        return cls(agent_class.astype(np.int64),
+        return cls(agent_class,
                    **{k: np.array(v)[agent_class] for k, v in per_class.items()})  # fmt: skip
+
+
+def per_agent(config, per_class, default) -> np.ndarray:
+    """(R,): each agent's entry of ``per_class`` (one per ``[[agents]]`` class, agents
+    in team order), or ``default`` for every agent of the paper's one-class team."""
+    if not config.agents:
+        return np.full(config.n_rovers, default)
+    return np.repeat(np.asarray(per_class), [c.count for c in config.agents])
+
+
+def agent_classes(config) -> np.ndarray:
+    """(R,) int64: each agent's class index (0 for every agent without ``[[agents]]``)."""
+    return per_agent(config, np.arange(len(config.agents)), 0).astype(np.int64)
 
 
 def gate_radius(agent_class, config) -> float:
