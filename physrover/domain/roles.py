@@ -92,10 +92,10 @@ def class_rows(config) -> list[slice]:
 
 
 def class_sensors(config) -> list[tuple]:
-    """(rows, sensor, view) of each class whose agents sense differently from the paper's
-    one sensor: with ``[[agents]]``, or POIs some agent may not sense (``[[pois]]``
-    ``visible_to``, ``sense_radius``, ``disappear``); else [] (the world's one sensor). A
-    class-aware sensor (one with a ``view``, the lidar) gets its class's view."""
+    """(rows, sensor, view, observation size) of each class whose agents sense differently
+    from the paper's one sensor: with ``[[agents]]``, or POIs some agent may not sense
+    (``[[pois]]`` ``visible_to``, ``sense_radius``, ``disappear``); else [] (the world's one
+    sensor). A class-aware sensor (one with a ``view``, the lidar) gets its class's view."""
     if not (config.agents or any(p.hides for p in config.pois)):
         return []
     classes = config.agents or [None]
@@ -103,7 +103,7 @@ def class_sensors(config) -> list[tuple]:
     for c, (rows, agent) in enumerate(zip(class_rows(config), classes, strict=True)):
         sensor = (agent.sensor if agent is not None else None) or config.sensor
         view = sensor.view(config, c) if hasattr(sensor, "view") else None
-        out.append((rows, sensor, view))
+        out.append((rows, sensor, view, sensor_size(sensor, config)))
     return out
 
 

@@ -42,7 +42,6 @@ from physrover.domain.poi_rules import PoiRules
 from physrover.domain.roles import class_sensors, spawn
 from physrover.domain.scenarios import StartState
 from physrover.domain.scoring import difference, start_episode
-from physrover.domain.sensors import sensor_size
 from physrover.domain.state import WorldState
 
 ACTION_DIM = 2
@@ -130,9 +129,9 @@ class RoverWorld:
         self.sensor = config.sensor
         self.class_sensors = class_sensors(config)
         """With ``[[agents]]`` or POIs some agents may not sense: (rows of the class, its
-        sensor, what it senses, a :class:`~physrover.domain.lidar.SensingView` or None)
-        per class, in order."""
-        dims = [sensor_size(s, config) for _, s, _ in self.class_sensors] or [self.sensor.dim]
+        sensor, what it senses, a :class:`~physrover.domain.lidar.SensingView` or None, its
+        observation size) per class, in order."""
+        dims = [size for *_, size in self.class_sensors] or [self.sensor.dim]
         self.obs_dim = int(max(dims))
         """Observations per agent: the largest class's (a smaller class's are zero-padded)."""
         self.dynamics = DYNAMICS[config.motion](config, self.n_teams)
@@ -285,8 +284,7 @@ class RoverWorld:
         """Each class's observations through its own sensor, in its rows' first columns;
         the columns past a class's size are 0."""
         obs[:] = 0.0
-        for rows, sensor, view in self.class_sensors:
-            size = sensor_size(sensor, self.config)
+        for rows, sensor, view, size in self.class_sensors:
             scratch = np.empty((self.n_teams, self.n_rovers, size), dtype=np.float32)
             if view is None:
                 sensor.observe(self.state, self.config.d_min, scratch)
