@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from physrover.core.compiled import jit
+from physrover.core.compiled import jit, jit_inline
 from physrover.domain.sense_kernels import (  # noqa: F401 (the sensor's kernels, re-exported)
     PAD,
     quadrant,
@@ -122,7 +122,7 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None):
     state.score[e] = total
 
 
-@jit
+@jit_inline
 def predecessors_before(after_k, first_steps, t):
     """Whether every POI j with ``after_k[j]`` was first captured (``first_steps[j]``, -1:
     never) at a step before ``t``."""
@@ -132,26 +132,33 @@ def predecessors_before(after_k, first_steps, t):
     return True
 
 
-@jit
+@jit_inline
 def _score_rules(e, k, state, rules, n_req, t):
     """Eq. 12 for POI k of team e at step t under ``rules`` (:mod:`physrover.domain.poi_rules`),
-    for the team and for each counterfactual without rover i; the counts are this step's."""
+    for the team and for each counterfactual without rover i; the counts are this step's.
+
+    Leaving an agent out never raises a count, so no counterfactual meets a coupling that the
+    team misses, and leaving out an agent not in range changes nothing: the coupling is
+    counted again only without each agent in range (O(R) a POI, not O(R^2))."""
     if rules.final_only[k] and t != rules.t_final:
         return
     near = state.in_range[t, e]
-    if coupling_met(k, near, rules, n_req, -1) and not state.captured[e, k]:
-        if predecessors_before(rules.after[k], state.capture_step[e], t):
-            state.capture_step[e, k] = t
-            state.captured[e, k] = True
+    if not coupling_met(k, near, rules, n_req, -1):
+        return
+    if not state.captured[e, k] and predecessors_before(rules.after[k], state.capture_step[e], t):
+        state.capture_step[e, k] = t
+        state.captured[e, k] = True
     for i in range(near.shape[0]):
-        if state.captured_without[e, i, k] or not coupling_met(k, near, rules, n_req, i):
+        if state.captured_without[e, i, k]:
+            continue
+        if near[i, k] and not coupling_met(k, near, rules, n_req, i):
             continue
         if predecessors_before(rules.after[k], rules.step_without[e, i], t):
             state.captured_without[e, i, k] = True
             rules.step_without[e, i, k] = t
 
 
-@jit
+@jit_inline
 def coupling_met(k, near, rules, n_req, without):
     """Eq. 12 for POI k from one step's in-range agents ``near`` (R, K) bool, agent
     ``without`` left out (-1: none): ``n_req[k]`` of them, or for a typed POI
