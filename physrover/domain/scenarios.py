@@ -296,21 +296,20 @@ class Uniform(SpawnDisc):
         """(K, 2): POIs drawn one after another, each redrawn until it is min_separation
         from those before it; after ``MAX_TRIES`` failed draws of one POI the whole layout
         starts again (a bad early placement can leave no room), up to ``MAX_TRIES`` times."""
-        out = np.empty((k, 2))
+        half, gap = self.half_size, self.min_separation
         for _ in range(self.MAX_TRIES):
-            placed = 0
-            while placed < k:
+            out: list[tuple[float, float]] = []  # Python floats: a draw costs a numpy call
+            while len(out) < k:
                 for _ in range(self.MAX_TRIES):
-                    p = self.half_size * (2.0 * rng.random(2) - 1.0)
-                    gaps = np.hypot(*(out[:placed] - p).T) if placed else np.inf
-                    if np.min(gaps) >= self.min_separation:
+                    u, v = rng.random(2).tolist()
+                    p = (half * (2.0 * u - 1.0), half * (2.0 * v - 1.0))
+                    if all(math.hypot(x - p[0], y - p[1]) >= gap for x, y in out):
                         break
                 else:
                     break  # no room for this POI: start the layout again
-                out[placed] = p
-                placed += 1
-            if placed == k:
-                return out
+                out.append(p)
+            if len(out) == k:
+                return np.array(out)
         raise RuntimeError(
             f"uniform scenario: no layout of {k} POIs {self.min_separation} apart in "
             f"{self.MAX_TRIES} attempts; lower min_separation or raise half_size"
