@@ -97,7 +97,7 @@ def replay_captures(in_range, removed, n_req, rules, out):
                     if first[k] >= 0 or (rules.final_only[k] and t != rules.t_final):
                         continue
                     if coupling_met(k, near, rules, n_req, -1) and predecessors_before(
-                        rules.after[k], first, t
+                        rules.after, k, first, t
                     ):
                         first[k] = t
             for k in range(n_pois):

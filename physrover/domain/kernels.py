@@ -108,7 +108,7 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None):
     total = 0.0
     for k in range(n_pois):
         if rules is not None:
-            _score_rules(e, k, state, rules, n_req, t)
+            _score_rules(e, k, near, state, rules, n_req, t)
         else:
             if count[k] >= n_req[k]:  # Eq. 12
                 if not captured[e, k]:
@@ -123,29 +123,30 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None):
 
 
 @jit_inline
-def predecessors_before(after_k, first_steps, t):
-    """Whether every POI j with ``after_k[j]`` was first captured (``first_steps[j]``, -1:
+def predecessors_before(after, k, first_steps, t):
+    """Whether every POI j with ``after[k, j]`` was first captured (``first_steps[j]``, -1:
     never) at a step before ``t``."""
-    for j in range(after_k.shape[0]):
-        if after_k[j] and (first_steps[j] < 0 or first_steps[j] >= t):
+    for j in range(after.shape[1]):
+        if after[k, j] and (first_steps[j] < 0 or first_steps[j] >= t):
             return False
     return True
 
 
 @jit_inline
-def _score_rules(e, k, state, rules, n_req, t):
+def _score_rules(e, k, near, state, rules, n_req, t):
     """Eq. 12 for POI k of team e at step t under ``rules`` (:mod:`physrover.domain.poi_rules`),
     for the team and for each counterfactual without rover i; the counts are this step's.
 
     Leaving an agent out never raises a count, so no counterfactual meets a coupling that the
     team misses, and leaving out an agent not in range changes nothing: the coupling is
-    counted again only without each agent in range (O(R) a POI, not O(R^2))."""
+    counted again only without each agent in range (O(R) a POI, not O(R^2)). ``near`` is
+    ``state.in_range[t, e]``, passed in: an array view made per POI costs more than the
+    rest of a POI's scoring."""
     if rules.final_only[k] and t != rules.t_final:
         return
-    near = state.in_range[t, e]
     if not coupling_met(k, near, rules, n_req, -1):
         return
-    if not state.captured[e, k] and predecessors_before(rules.after[k], state.capture_step[e], t):
+    if not state.captured[e, k] and predecessors_before(rules.after, k, state.capture_step[e], t):
         state.capture_step[e, k] = t
         state.captured[e, k] = True
     for i in range(near.shape[0]):
@@ -153,7 +154,7 @@ def _score_rules(e, k, state, rules, n_req, t):
             continue
         if near[i, k] and not coupling_met(k, near, rules, n_req, i):
             continue
-        if predecessors_before(rules.after[k], rules.step_without[e, i], t):
+        if predecessors_before(rules.after, k, rules.step_without[e, i], t):
             state.captured_without[e, i, k] = True
             rules.step_without[e, i, k] = t
 
