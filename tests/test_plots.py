@@ -300,6 +300,19 @@ def test_many_groups_keep_apart_and_keep_off_the_curves(tmp_path, figures):
     assert box.x0 >= axes_box.x1  # beside the axes, not over the curves
 
 
+def test_a_few_long_legend_entries_stay_inside_the_figure(tmp_path, figures):
+    # Two groups whose names list every varied field: inside the axes the legend ran
+    # past the figure's left edge, its entries cut off.
+    fields = {"trajectory_batch": 8, "trajectory_batches": 4, "trajectory_hidden": 16}
+    runs = [_fake_run(tmp_path, "a", "max-critic", 5, [1.0, 2.0]),
+            _fake_run(tmp_path, "b", "recurrent-max-critic", 5, [1.0, 3.0], **fields)]  # fmt: skip
+    plots.make_curves(runs, tmp_path / "long.png", smooth=2)
+    fig = figures[0]
+    assert max(map(len, _legend(fig))) > 100
+    box = fig.axes[0].get_legend().get_window_extent()
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.x1 + 1
+
+
 def test_a_trainer_run_is_not_grouped_by_the_ccea_generations(tmp_path):
     ccea = _fake_run(tmp_path, "ccea", "max-critic", 3, [1.0], generations=300)
     mappo = _fake_run(tmp_path, "mappo", "mappo", 3, [1.0], generations=777)

@@ -110,10 +110,12 @@ def _max_g_lines(ax, table: dict) -> None:
 
 def _finish(fig, ax, plt, out: Path) -> None:
     """Legend, layout, save to ``out`` (creating its directory), close. More than five
-    entries go beside the axes, the figure widened by the longest entry (about 0.05 inch a
-    character at 7 points), so the legend neither covers a curve nor squeezes the axes."""
+    entries, or one longer than 40 characters (which inside the axes would run past the
+    figure's edge), go beside the axes, the figure widened by the longest entry (about
+    0.05 inch a character at 7 points), so the legend neither covers a curve nor squeezes
+    the axes."""
     labels = ax.get_legend_handles_labels()[1]
-    if len(labels) > 5:
+    if len(labels) > 5 or max(map(len, labels), default=0) > 40:
         fig.set_size_inches(6.4 + max(2.6, 0.05 * max(map(len, labels))), 4.2)
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     else:
