@@ -135,12 +135,18 @@ class Lidar(Sensor):
         self.observe_class(state, d_min, out, SensingView.everything(n_agents, n_pois,
                                                                      self.sectors))  # fmt: skip
 
-    def observe_class(self, state, d_min: float, out: np.ndarray, view: SensingView) -> None:
-        """:meth:`observe` as agents of one class see: the channels and POIs of ``view``."""
+    def observe_class(self, state, d_min: float, out: np.ndarray, view: SensingView,
+                      rows: slice | None = None) -> None:  # fmt: skip
+        """:meth:`observe` as agents of one class see: the channels and POIs of ``view``,
+        for the agents of ``rows`` only (a slice of the team, default all), into their rows
+        of ``out`` (E, R, >= this sensor's size) and its first columns; the rest of ``out``
+        is left as it was."""
         radius_sq = self.radius * self.radius if math.isfinite(self.radius) else math.inf
+        first, stop, _ = (rows or slice(None)).indices(state.cos_h.shape[1])
+        n_channels = view.poi_base + self.sectors  # the POIs' block is the last
         lidar(state, d_min * d_min, self.sectors, radius_sq, COMPOSE.index(self.compose),
               MEASURES.index(self.measure), self.empty, self.bearing == "world",
-              *view, out)  # fmt: skip
+              *view, first, stop, n_channels, out)  # fmt: skip
 
 
 class SensingView(NamedTuple):
@@ -195,19 +201,19 @@ def _term(num, dist_sq, d_min_sq, radius_sq, measure):
 
 @jit
 def lidar(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world, agent_base,
-          poi_base, visible, poi_radius_sq, disappear, obs):  # fmt: skip
-    """The lidar readings (E, R, channels) of every rover of ``state`` into ``obs``:
-    ``compose`` and ``measure`` are indices into :data:`COMPOSE` and :data:`MEASURES`,
-    ``radius_sq`` inf for no radius, ``world`` the world-frame bearing (module docstring);
-    the rest a :class:`SensingView`."""
+          poi_base, visible, poi_radius_sq, disappear, first, stop, n_channels, obs):  # fmt: skip
+    """The lidar readings of agents ``first`` to ``stop - 1`` of every team of ``state``
+    into ``obs[:, first:stop, :n_channels]``: ``compose`` and ``measure`` are indices into
+    :data:`COMPOSE` and :data:`MEASURES`, ``radius_sq`` inf for no radius, ``world`` the
+    world-frame bearing (module docstring); ``agent_base`` to ``disappear`` a
+    :class:`SensingView`."""
     positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
     poi_positions, poi_values = state.poi_positions, state.poi_values
     n_teams, n_rovers = cos_h.shape
-    n_channels = obs.shape[2]
     acc = np.zeros(n_channels)
     count = np.zeros(n_channels, dtype=np.int64)
     for e in range(n_teams):
-        for i in range(n_rovers):
+        for i in range(first, stop):
             c, s = cos_h[e, i], sin_h[e, i]
             xi, yi = positions[e, i, 0], positions[e, i, 1]
             acc[:] = 0.0

@@ -285,11 +285,11 @@ class RoverWorld:
         the columns past a class's size are 0."""
         obs[:] = 0.0
         for rows, sensor, view, size in self.class_sensors:
+            if view is not None:  # a lidar: senses for the class's rows, into their columns
+                sensor.observe_class(self.state, self.config.d_min, obs, view, rows)
+                continue
             scratch = np.empty((self.n_teams, self.n_rovers, size), dtype=np.float32)
-            if view is None:
-                sensor.observe(self.state, self.config.d_min, scratch)
-            else:
-                sensor.observe_class(self.state, self.config.d_min, scratch, view)
+            sensor.observe(self.state, self.config.d_min, scratch)
             obs[:, rows, :size] = scratch[:, rows]
 
     @property
