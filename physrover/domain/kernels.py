@@ -140,8 +140,7 @@ def _score_rules(e, k, near, state, rules, n_req, t):
     Leaving an agent out never raises a count, so no counterfactual meets a coupling that the
     team misses, and leaving out an agent not in range changes nothing: the coupling is
     counted again only without each agent in range (O(R) a POI, not O(R^2)). ``near`` is
-    ``state.in_range[t, e]``, passed in: an array view made per POI costs more than the
-    rest of a POI's scoring."""
+    ``state.in_range[t, e]``, the team's view, passed in rather than made again per POI."""
     if rules.final_only[k] and t != rules.t_final:
         return
     if not coupling_met(k, near, rules, n_req, -1):
