@@ -84,6 +84,26 @@ def test_unfinished_runs_are_left_out_and_said_so(tmp_path, sweep, capsys):
     assert {r["seed"] for r in _rows(tmp_path / "out" / "runs.csv")} == {"0"}
 
 
+def test_no_final_score_figure_for_a_field_only_one_variant_sets(tmp_path, capsys):
+    # trajectory-critics-long: a critic's own fields differ between the two variants only;
+    # each group had one point, and three empty figures were drawn.
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP.replace('"fig8-9-paper"', '"variants"').replace(
+        'method = ["D", "max-critic"]\n', "") + """
+[[variants]]
+method = "D"
+[[variants]]
+method = "max-critic"
+critic_hidden = 20
+""")  # fmt: skip
+    _fake_runs(Sweep.load(path), tmp_path / "root", None)
+    assert (
+        main(["results", str(tmp_path / "root" / "variants"), "--out", str(tmp_path / "out")]) == 0
+    )
+    made = sorted(p.name for p in (tmp_path / "out").glob("*_final_vs_*.png"))
+    assert made == ["variants_final_vs_n_rovers.png"]  # not ..._final_vs_critic_hidden
+
+
 def test_errors_are_one_line(tmp_path, capsys):
     assert main(["results", str(tmp_path / "missing")]) == 2
     (tmp_path / "empty").mkdir()

@@ -10,8 +10,9 @@ For each sweep directory (``ROOT/NAME``, as ``physrover sweep`` makes it) this w
 - ``cells.md`` and ``cells.csv``: per sweep and cell of its grid, the final G's mean and
   Student-t 95% CI over seeds and their number;
 - ``NAME_curves.png`` (learning curves, a group per cell; ``smooth``-generation moving
-  mean) and, for each numeric grid field F, ``NAME_final_vs_F.png`` (final score against F,
-  a group per cell of the other fields), each with the plotted numbers as CSV beside it.
+  mean) and, for each numeric grid field F that some cell of the other fields has two
+  values of, ``NAME_final_vs_F.png`` (final score against F, a group per cell of the
+  other fields), each with the plotted numbers as CSV beside it.
 
 **Pooling across machines**: a sweep too long for one machine runs in chunks of seeds
 (``physrover sweep FILE --seeds 0:5`` here, ``--seeds 5:10`` elsewhere) whose run
@@ -171,7 +172,8 @@ def _numeric(values) -> bool:
 
 def figures(result: SweepResults, out: Path, last: int, smooth: int) -> list[Path]:
     """``NAME_curves.png`` of the runs found and ``NAME_final_vs_F.png`` for each numeric
-    grid field F (runs and kept rows)."""
+    grid field F (runs and kept rows) that takes two values or more with the other fields
+    fixed (not a field only one variant sets, such as a critic's size)."""
     made = []
     if result.runs:
         table = plots.curve_table(result.runs, smooth=smooth)
@@ -185,6 +187,8 @@ def figures(result: SweepResults, out: Path, last: int, smooth: int) -> list[Pat
         for row in result.rows:
             group = " ".join([row["method"], *(f"{f}={row[f]}" for f in result.grid if f != x)])
             scores[group][float(row[x])].append(float(row["final_G"]))
+        if all(len(by_x) < 2 for by_x in scores.values()):
+            continue  # F changes only with the variant (a method's own field): no trend to draw
         shared = {group: (g_max, group.split()[0]) for group in scores}
         png = out / f"{result.name}_final_vs_{x}.png"
         title = f"{result.name}: final score (last {last} generations)"
