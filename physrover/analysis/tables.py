@@ -236,11 +236,12 @@ def write_csv(rows: list[dict], columns: list[str], path: Path) -> Path:
 
 def final_scores(runs_csv: Path, variant) -> dict[tuple[str, str], dict[str, float]]:
     """``{(variant(row), n_req): {seed: final_G}}`` from a ``physrover results`` runs.csv:
-    what a study's planned comparisons are drawn from."""
+    what a study's planned comparisons are drawn from (n_req ``""`` where the sweep's runs
+    share one, which runs.csv then leaves out)."""
     scores: dict[tuple[str, str], dict[str, float]] = defaultdict(dict)
     with open(runs_csv, newline="") as f:
         for row in csv.DictReader(f):
-            scores[(variant(row), row["n_req"])][row["seed"]] = float(row["final_G"])
+            scores[(variant(row), row.get("n_req", ""))][row["seed"]] = float(row["final_G"])
     return scores
 
 
