@@ -149,4 +149,19 @@ def pois_table(pois: tuple[PoiRule, ...]) -> list[dict]:
     return tables
 
 
-__all__ = ["DISAPPEAR", "SCORE_AT", "PoiRule", "check_pois", "coerce_pois", "pois_table"]
+def capture_radii(domain) -> list[float]:
+    """Each POI's capture radius, world units: its own ``capture_radius``, or ``d_cap``
+    where it has none (0, or no ``[[pois]]``)."""
+    own = [p.capture_radius for p in domain.pois] or [0.0] * domain.n_pois
+    return [radius or domain.d_cap for radius in own]
+
+
+__all__ = [
+    "DISAPPEAR",
+    "SCORE_AT",
+    "PoiRule",
+    "capture_radii",
+    "check_pois",
+    "coerce_pois",
+    "pois_table",
+]

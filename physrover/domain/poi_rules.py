@@ -26,6 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from physrover.config.pois import capture_radii
 from physrover.domain.roles import agent_classes, per_agent
 
 
@@ -65,8 +66,7 @@ class PoiRules(NamedTuple):
             return None
         k = config.n_pois
         pois = config.pois or [None] * k
-        radius = np.array([p.capture_radius if p and p.capture_radius else config.d_cap
-                           for p in pois], dtype=np.float64)  # fmt: skip
+        radius = np.array(capture_radii(config), dtype=np.float64)
         after = np.zeros((k, k), dtype=bool)
         for i, p in enumerate(pois):
             after[i, list(p.after if p else ())] = True

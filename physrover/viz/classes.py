@@ -14,6 +14,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from physrover.config.pois import capture_radii
+
 
 def mark_classes(img, tf, now: np.ndarray, domain, radius_px: int, colour) -> None:
     """Diamonds around the agents (pixels ``now``, (R, 2) world positions) of classes that
@@ -58,8 +60,7 @@ def poi_rule_label(domain, k: int) -> str:
 def ring_pixels(tf, domain, k: int) -> int:
     """The radius in pixels of POI k's capture ring: its own ``capture_radius`` or
     ``d_cap``."""
-    own = domain.pois[k].capture_radius if domain.pois else 0.0
-    return max(1, int(tf.scale * (own or domain.d_cap)))
+    return max(1, int(tf.scale * capture_radii(domain)[k]))
 
 
 __all__ = ["class_legend", "mark_classes", "poi_rule_label", "ring_pixels"]
