@@ -10,7 +10,8 @@ first (a wing imports only from the wings before it; ``tests/test_layers.py`` ch
 
     core        registries, compiled-kernel cache, threads, progress, plugins, statistics
     config      typed frozen tables: [domain] [physics] [scenario] [sensor] [learn] [...]
-    domain      the rover domain, batched over teams: state, motion, sensors, scoring, credit
+    domain      the rover domain, batched over teams: state, plan and step, agents, motion,
+                sensing, scoring and credit
     viz         frames of a world state and H.264 video
     envs        gymnasium single and vector envs, PettingZoo
     learn       policies, evolution, critics, fitness methods, the CCEA (Algorithm 1)
@@ -26,14 +27,15 @@ import gymnasium
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
 from physrover.core import deprecation as _deprecation
-from physrover.domain import lidar as _lidar  # noqa: F401  (the lidar sensor)
-from physrover.domain import physics as _physics  # noqa: F401  (motion models)
+from physrover.domain.motion import physics as _physics  # noqa: F401  (motion models)
 
 # Importing these registers the built-in parts under their names (physrover.core.registry).
-from physrover.domain.credit import register_credit
-from physrover.domain.dynamics import register_dynamics
+from physrover.domain.motion.dynamics import register_dynamics
 from physrover.domain.scenarios import register_scenario
-from physrover.domain.sensors import register_sensor
+from physrover.domain.scoring.credit import register_credit
+from physrover.domain.sensing import density as _density  # noqa: F401  (the sensors)
+from physrover.domain.sensing import lidar as _lidar  # noqa: F401
+from physrover.domain.sensing.sensor import register_sensor
 from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
 from physrover.learn.fitness import register_method
 from physrover.marl.configs import register_trainer  # trainers; no torch import

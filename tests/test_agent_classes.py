@@ -205,13 +205,16 @@ def test_each_class_observes_with_its_own_sensor_zero_padded():
 
 
 def test_one_class_of_the_paper_rovers_is_the_paper_team():
-    """[[agents]] with one class of 15 default rovers: the classes' path (a step loop with
-    roles) equals the paper's fused step bit for bit."""
+    """[[agents]] with one class of 15 default rovers: the classes' path (roles, the
+    classes' sensing table with the density sensor as a lidar) equals the paper's step bit
+    for bit."""
     paper = DomainConfig(n_req=2)
     mirror = DomainConfig.from_toml('[domain]\nn_req = 2\n[[agents]]\nname = "rover"\n'
                                     "count = 15\n")  # fmt: skip
     worlds = [RoverWorld(c, 3) for c in (paper, mirror)]
-    assert worlds[0].fused and not worlds[1].fused
+    assert worlds[0].plan.step.classes is None and worlds[0].plan.step.motion.roles is None
+    assert worlds[1].plan.step.classes is not None and worlds[1].plan.step.motion.roles
+    assert worlds[0].compiled and worlds[1].compiled
     actions = np.random.default_rng(3).uniform(-1.2, 1.2, (paper.steps, 3, 15, 2))
     play_alike(worlds, actions)
     a, b = worlds
@@ -314,18 +317,18 @@ def test_runs_that_differ_in_a_class_are_told_apart():
 
 
 def test_world_frame_commands_become_the_bodies_setpoints():
-    from physrover.domain.physics_kernels import setpoints
-    from physrover.domain.roles import Roles, class_commands
+    from physrover.domain.agents.roles import Roles
+    from physrover.domain.motion.integrator import setpoints
 
     domain = _domain(TWO.replace("bounds = [-10.0, 4.0, -10.0, 10.0]\n", "")).replace(
         motion="physics")  # fmt: skip
     world, _ = _world(domain, [(0, 0), (1, 1)], headings=[0.3, 2.0])  # the UAV within 3
     actions = np.array([[[0.5, 0.2], [0.6, -0.4]]])
-    commands = class_commands(actions, world.state, Roles.build(domain))
     target_v, heading = np.empty((1, 2, 2)), np.empty((1, 2))
-    setpoints(commands, world.state.rover_headings, world.state.cos_h, world.state.sin_h,
-              None, target_v, heading)  # fmt: skip
-    np.testing.assert_allclose(target_v[0, 1], [1.2, -0.8], atol=1e-12)  # speed 2, (x, y)
+    state = world.state
+    setpoints(actions, state.rover_positions, state.rover_headings, state.cos_h, state.sin_h,
+              None, Roles.build(domain), target_v, heading)  # fmt: skip
+    assert target_v[0, 1].tolist() == [1.2, -0.8]  # speed 2, (x, y): exact, no frame turned
     c, s = np.cos(0.3), np.sin(0.3)  # the rover: its own frame, speed 1
     np.testing.assert_allclose(target_v[0, 0], [c * 0.5 - s * 0.2, s * 0.5 + c * 0.2],
                                atol=1e-12)  # fmt: skip

@@ -10,9 +10,9 @@ import pytest
 
 from physrover import DomainConfig, RoverVectorEnv
 from physrover.domain.broadphase import GRID_MIN_POINTS, near_pairs_all, near_pairs_grid
-from physrover.domain.contacts import speculative_contacts
-from physrover.domain.physics import pair_overlaps
-from physrover.domain.separation import separate_teams
+from physrover.domain.motion.contacts import speculative_contacts
+from physrover.domain.motion.physics import pair_overlaps
+from physrover.domain.motion.separation import separate_teams
 
 PHYSICS = DomainConfig(motion="physics").replace(collisions=True)
 
@@ -157,7 +157,7 @@ def _contacts_every_pair_every_sweep(positions, velocities, contact, mass, dt, a
     plain loop: every pair of every team tested in every sweep, in index order, then every
     rover against the capsules (the package's own ``_capsule_contact``), until a sweep
     changes nothing."""
-    from physrover.domain.contacts import _capsule_contact
+    from physrover.domain.motion.contacts import _capsule_contact
 
     points, velocities = positions, velocities.copy()
     positions = positions.tolist()

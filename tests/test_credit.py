@@ -5,7 +5,7 @@ import pytest
 
 from physrover.config import ConfigError, RunConfig
 from physrover.core.registry import CREDITS
-from physrover.domain.credit import Credit, register_credit
+from physrover.domain.scoring.credit import Credit, register_credit
 from physrover.learn.ccea import CCEA
 
 EASY = {"n_rovers": 3, "n_req": 1, "population": 6, "steps": 20, "eval_episodes": 2,

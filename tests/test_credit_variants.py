@@ -9,7 +9,7 @@ import pytest
 
 from physrover import RoverEnv
 from physrover.config import ConfigError, DomainConfig
-from physrover.domain.scoring import d_plus_plus
+from physrover.domain.scoring.difference import d_plus_plus
 from physrover.domain.world import RoverWorld, StartOverrides
 
 # POI 0 (value 3) at the origin, POI 1 (value 5) at (20, 0); capture radius 1.

@@ -6,10 +6,10 @@ import pytest
 from oracles import indirect_difference_loops
 
 from physrover.config import DomainConfig, LearnConfig
-from physrover.domain.credit import CREDITS
-from physrover.domain.influence import replay_captures
-from physrover.domain.kernels import score
-from physrover.domain.poi_rules import PoiRules
+from physrover.domain.scoring.captures import score
+from physrover.domain.scoring.credit import CREDITS
+from physrover.domain.scoring.influence import replay_captures
+from physrover.domain.scoring.rules import PoiRules
 from physrover.domain.world import RoverWorld, StartOverrides
 
 ROVER_AND_TWO_UAVS = """
@@ -37,7 +37,7 @@ def _episode(paths, pois=((0.0, 0.0),), values=(2.0,)):
     for t, positions in enumerate(paths[1:], start=1):
         world.state.rover_positions[0] = positions
         world.position_history[t, 0] = positions
-        score(world.state, domain.d_cap, world.n_req, t, world.poi_rules)
+        score(world.state, domain.d_cap, world.n_req, t, world.plan.step.rules)
     return world
 
 

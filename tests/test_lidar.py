@@ -9,7 +9,7 @@ from conftest import play_alike
 from gymnasium.utils.env_checker import check_env
 
 from physrover.config import ConfigError, DomainConfig
-from physrover.domain.lidar import Lidar
+from physrover.domain.sensing.lidar import Lidar
 from physrover.domain.world import RoverWorld, StartOverrides
 from physrover.envs import RoverEnv
 

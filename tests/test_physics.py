@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 from physrover import DomainConfig, RoverEnv, RoverVectorEnv
 from physrover.config import ConfigError
-from physrover.domain.physics import pair_overlaps, separate
+from physrover.domain.motion.physics import pair_overlaps, separate
 from physrover.domain.world import RoverWorld, StartOverrides
 
 
@@ -242,7 +242,7 @@ def test_the_state_holds_each_models_velocities(motion):
 
 
 def test_unequal_masses_share_a_speculative_contact_as_momentum_does():
-    from physrover.domain.contacts import speculative_contacts
+    from physrover.domain.motion.contacts import speculative_contacts
 
     positions = np.array([[[0.0, 0.0], [1.0, 0.0]]])
     velocities = np.array([[[2.0, 0.0], [-2.0, 0.0]]])
@@ -326,7 +326,7 @@ def test_the_integrate_kernel_is_chipmunks_step_of_a_free_body():
     # masses and time steps: positions move with the written velocity, then the force acts.
     import pymunk
 
-    from physrover.domain.physics_kernels import integrate
+    from physrover.domain.motion.integrator import integrate
 
     rng = np.random.default_rng(0)
     for _ in range(200):

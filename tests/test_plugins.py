@@ -27,7 +27,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from physrover.domain.credit import Credit, register_credit
+from physrover.domain.scoring.credit import Credit, register_credit
 from physrover.domain.scenarios import Scenario, StartState, register_scenario, spawn_in_disc
 
 

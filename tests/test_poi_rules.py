@@ -1,13 +1,16 @@
 """POIs with rules ([[pois]], issue 33): config, hand-worked scores, a plain-loop oracle."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import play_alike
 from oracles import score_rules_loops
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
-from physrover.domain.credit import CREDITS
-from physrover.domain.kernels import score
+from physrover.domain.scoring.captures import score
+from physrover.domain.scoring.credit import CREDITS
+from physrover.domain.scoring.rules import PoiRules
 from physrover.domain.world import RoverWorld, StartOverrides
 
 LAB_TOML = """
@@ -89,7 +92,7 @@ def _scored(pois, paths, poi_positions, n_rovers=None, steps=4, **domain):
         poi_positions=poi_positions))  # fmt: skip
     for t, positions in enumerate(paths[1:], start=1):
         world.state.rover_positions[0] = positions
-        score(world.state, config.d_cap, world.n_req, t, world.poi_rules)
+        score(world.state, config.d_cap, world.n_req, t, world.plan.step.rules)
     return world
 
 
@@ -121,7 +124,7 @@ def test_difference_applies_the_order_to_each_counterfactual():
     world = _scored(CHAIN, paths, CHAIN_POIS)
     assert world.G[0] == 3.0
     assert list(world.D[0]) == [3.0, 2.0]
-    assert list(world.poi_rules.step_without[0, 1]) == [1, -1]  # without rover 1: POI 0 at 1
+    assert list(world.plan.step.rules.step_without[0, 1]) == [1, -1]  # without rover 1: POI 0 at 1
 
 
 def test_final_pois_count_only_at_the_last_scored_state():
@@ -132,7 +135,7 @@ def test_final_pois_count_only_at_the_last_scored_state():
     assert _scored(pois, late, [(0.0, 0.0)]).G[0] == 4.0
     # under "before-steps" the last scored state is steps - 1 = 3
     w = _scored(pois, late[:4] + [[(0.0, 0.0)]], [(0.0, 0.0)], scored_states="before-steps")
-    assert w.poi_rules.t_final == 3 and w.G[0] == 0.0
+    assert w.plan.step.rules.t_final == 3 and w.G[0] == 0.0
     w = _scored(pois, [[FAR], [FAR], [FAR], [(0.0, 0.0)]], [(0.0, 0.0)],
                 scored_states="before-steps")  # fmt: skip
     assert w.G[0] == 4.0
@@ -191,12 +194,17 @@ def test_random_episodes_score_as_the_oracle(seed, motion):
 
 
 def test_rules_that_mirror_the_paper_give_the_paper_episode():
-    """[[pois]] with the paper's values and no rule: the rules' path (a step loop) equals
-    the paper's fused step bit for bit (the generalised kernel reduces to Eqs. 11-13)."""
+    """[[pois]] with the paper's values and no rule, scored through the rules' kernel
+    (built as if a rule were set): the paper's episode bit for bit (the generalised kernel
+    reduces to Eqs. 11-13, which is why the plan may leave rules that mirror the paper's
+    out)."""
     paper = DomainConfig(n_req=2)
     mirror = DomainConfig(n_req=2, pois=[{"value": v} for v in paper.poi_values])
     worlds = [RoverWorld(c, 3) for c in (paper, mirror)]
-    assert worlds[0].fused and not worlds[1].fused
+    assert worlds[1].plan.step.rules is None  # compiled away: the paper's POIs
+    rules = PoiRules.build(mirror, 3, always=True)
+    step = worlds[1].plan.step._replace(rules=rules)
+    worlds[1].plan = dataclasses.replace(worlds[1].plan, step=step)
     rng = np.random.default_rng(7)
     actions = rng.uniform(-1, 1, (paper.steps, 3, paper.n_rovers, 2))
     play_alike(worlds, actions)
@@ -276,7 +284,7 @@ def test_a_typed_poi_needs_each_class_it_names():
             poi_positions=np.asarray(pois)))  # fmt: skip
         for t, positions in enumerate(paths[1:], start=1):
             world.state.rover_positions[0] = positions
-            score(world.state, domain.d_cap, world.n_req, t, world.poi_rules)
+            score(world.state, domain.d_cap, world.n_req, t, world.plan.step.rules)
         return world
 
     # two rovers but no UAV, then the UAV alone: never both classes at one step

@@ -1,6 +1,6 @@
 """The whole-episode compiled rollout plays exactly what the step-by-step world plays.
 
-:func:`physrover.learn.rollout.ideal_episode` composes the world step's own kernels with the
+:func:`physrover.learn.rollout.policy_episode` composes the world's own step with the
 policies' forward pass; these tests play the same teams both ways (the compiled episode,
 and ``world.step`` called once per step on the same :class:`TeamPolicy`) and compare every
 record bit for bit, then whole CCEA generations of every fitness method both ways; and
@@ -34,7 +34,7 @@ def _play(config, policy, seed, compiled, headings=True):
     rngs = [np.random.default_rng([seed, e]) for e in range(world.n_teams)]
     obs = world.reset(rngs)
     if compiled:
-        assert world.fused
+        assert world.compiled
         play_episode(world, obs, policy, headings)
     else:
         for _ in range(config.steps):
@@ -90,7 +90,7 @@ def test_physical_motion_plays_the_step_loop():
     config = DomainConfig().replace(motion="physics", n_rovers=4, steps=8, n_req=2)
     policy = _teams(config, 3, seed=5)
     world = RoverWorld(config, 3)
-    assert not world.fused
+    assert not world.compiled
     play_episode(world, world.reset([np.random.default_rng([7, e]) for e in range(3)]), policy)
     stepped = _play(config, policy, 7, compiled=False)
     assert world.t == config.steps
@@ -144,7 +144,7 @@ def test_every_method_trains_the_same_with_the_compiled_episode(method, monkeypa
     )
     fast = CCEA(config)
     fast_stats = [fast.run_generation() for _ in range(3)]
-    monkeypatch.setattr(RoverWorld, "fused", property(lambda self: False))
+    monkeypatch.setattr(RoverWorld, "compiled", property(lambda self: False))
     slow = CCEA(config)
     slow_stats = [slow.run_generation() for _ in range(3)]
     for a, b in zip(fast_stats, slow_stats, strict=True):

@@ -18,10 +18,10 @@ from gymnasium.utils.env_checker import check_env
 
 from physrover import RoverEnv, RoverVectorEnv
 from physrover.config import ConfigError, DomainConfig, LearnConfig, RunConfig
-from physrover.domain.credit import Credit, register_credit
-from physrover.domain.dynamics import Dynamics, register_dynamics
+from physrover.domain.motion.dynamics import Dynamics, register_dynamics
 from physrover.domain.scenarios import Scenario, StartState, register_scenario, spawn_in_disc
-from physrover.domain.sensors import Sensor, register_sensor
+from physrover.domain.scoring.credit import Credit, register_credit
+from physrover.domain.sensing.sensor import Sensor, register_sensor
 from physrover.learn.ccea import CCEA
 
 
@@ -196,9 +196,9 @@ def test_five_ccea_generations_with_every_custom_part(method):
         assert all(np.isfinite(s.critic_loss) for s in stats)
 
 
-def test_only_the_built_in_parts_fuse_into_one_compiled_step():
-    from physrover.domain.dynamics import Ideal
-    from physrover.domain.sensors import Density
+def test_only_the_built_in_parts_compile_into_the_step():
+    from physrover.domain.motion.dynamics import Ideal
+    from physrover.domain.sensing.density import Density
     from physrover.domain.world import RoverWorld
 
     @dataclasses.dataclass(frozen=True)
@@ -208,19 +208,19 @@ def test_only_the_built_in_parts_fuse_into_one_compiled_step():
     class MyIdeal(Ideal):
         name: ClassVar[str] = "test-my-ideal"
 
-    assert (Density.fused, Ideal.fused, MyDensity.fused, MyIdeal.fused) == (
-        True,
-        True,
-        False,
-        False,
-    )
-    assert RoverWorld(DomainConfig(), 1)._fused
-    assert not RoverWorld(DomainConfig(sensor=MyDensity()), 1)._fused
-    assert not RoverWorld(DomainConfig(motion="physics"), 1)._fused
+    register_dynamics(MyIdeal)
+    assert RoverWorld(DomainConfig(), 1).compiled
+    with pytest.warns(UserWarning, match="sensor MyDensity brings no compiled kernel"):
+        world = RoverWorld(DomainConfig(sensor=MyDensity()), 1)
+    assert not world.compiled and world.plan.step.density is None
+    for motion in ("physics", MyIdeal.name):  # stepped from Python, sensed and scored compiled
+        world = RoverWorld(DomainConfig(motion=motion), 1)
+        assert not world.compiled and world.plan.step.motion is None
+        assert world.plan.step.density is not None and not world.plan.python_sensors
 
 
-def test_the_fused_step_equals_its_parts_called_in_turn():
-    from physrover.domain.dynamics import Ideal
+def test_the_compiled_step_equals_its_parts_called_in_turn():
+    from physrover.domain.motion.dynamics import Ideal
     from physrover.domain.world import RoverWorld
 
     class Unfused(Ideal):  # the same motion, called as its own step
@@ -229,7 +229,7 @@ def test_the_fused_step_equals_its_parts_called_in_turn():
     register_dynamics(Unfused)
     small = DomainConfig(n_req=2).replace(poi_ring_radius=5.0)  # random walks capture
     worlds = [RoverWorld(small.replace(motion=m), 6) for m in ("ideal", Unfused.name)]
-    assert worlds[0]._fused and not worlds[1]._fused
+    assert worlds[0].compiled and not worlds[1].compiled
     commands = np.random.default_rng(3).uniform(-1.2, 1.2, (50, 6, 15, 2))
     play_alike(worlds, commands)
     a, b = worlds

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from oracles import observe, quadrants, relate
 
-from physrover.domain import kernels
+from physrover.domain.motion.ideal import heading_trig
+from physrover.domain.sensing import density, sectors
 from physrover.domain.state import WorldState
 
 
@@ -21,9 +22,9 @@ def compiled_observe(rovers, headings, pois, values, d_min):
     state.rover_headings[:] = headings
     state.poi_positions[:] = pois
     state.poi_values[:] = values
-    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    heading_trig(state.rover_headings, state.cos_h, state.sin_h)
     obs = np.empty((n_teams, n_rovers, 8), dtype=np.float32)
-    kernels.sense(state, d_min, (0,) * 4, None, obs)
+    density.sense(state, d_min * d_min, (0,) * 4, None, obs)
     return obs
 
 
@@ -111,7 +112,7 @@ def test_sensing_uses_the_rovers_own_frame(engine):
 )
 def test_quadrant_boundaries(forward, left, q):
     assert quadrants(np.array([forward]), np.array([left]))[0] == q
-    assert kernels.quadrant(forward, left) == q
+    assert sectors.quadrant(forward, left) == q
 
 
 def test_quadrant_matches_the_atan2_definition():
@@ -121,7 +122,7 @@ def test_quadrant_matches_the_atan2_definition():
     b = np.where(b >= math.pi, -math.pi, b)
     expected = np.floor((b + math.pi) / (math.pi / 2)).astype(int)
     np.testing.assert_array_equal(quadrants(f, l), expected)
-    compiled = [kernels.quadrant(*fl) for fl in zip(f, l, strict=True)]
+    compiled = [sectors.quadrant(*fl) for fl in zip(f, l, strict=True)]
     np.testing.assert_array_equal(compiled, expected)
 
 
@@ -200,14 +201,14 @@ def test_sectors_and_radius_match_the_plain_loop_oracle(n, radius, n_rovers):
     for name, value in (("rover_positions", rovers), ("rover_headings", headings),
                         ("poi_positions", pois), ("poi_values", values)):  # fmt: skip
         getattr(state, name)[:] = value
-    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    heading_trig(state.rover_headings, state.cos_h, state.sin_h)
     obs = np.empty((5, n_rovers, 2 * n), dtype=np.float32)
-    kernels.sense(state, 1.0, (0,) * n, radius**2 if radius < np.inf else None, obs)
+    density.sense(state, 1.0, (0,) * n, radius**2 if radius < np.inf else None, obs)
     expected = _sector_oracle(rovers, headings, pois, values, 1.0, n, radius)
     np.testing.assert_allclose(obs, expected, rtol=1e-6, atol=1e-9)
     if radius < np.inf:  # the radius took something away
         full = np.empty_like(obs)
-        kernels.sense(state, 1.0, (0,) * n, None, full)
+        density.sense(state, 1.0, (0,) * n, None, full)
         assert (full.sum(-1) > obs.sum(-1) + 1e-6).any()
 
 
@@ -217,9 +218,9 @@ def test_the_radius_excludes_an_object_just_beyond_it():
         state = WorldState.zeros(1, 1, 1)
         state.poi_positions[:] = [[[distance, 0.0]]]
         state.poi_values[:] = 2.0
-        kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+        heading_trig(state.rover_headings, state.cos_h, state.sin_h)
         obs = np.empty((1, 1, 12), dtype=np.float32)
-        kernels.sense(state, 1.0, (0,) * 6, radius**2 if radius < np.inf else None, obs)
+        density.sense(state, 1.0, (0,) * 6, radius**2 if radius < np.inf else None, obs)
         return obs[0, 0]
 
     # Six sectors of 60 deg from dead behind: dead ahead (bearing 0) starts sector 3.
@@ -269,7 +270,7 @@ def _same_order_observe(state, d_min, radius_sq=None):
                 d_sq = dx * dx + dy * dy
                 if radius_sq is not None and d_sq > radius_sq:
                     continue
-                q = kernels.quadrant.py_func(c * dx + s * dy, c * dy - s * dx)
+                q = sectors.quadrant.py_func(c * dx + s * dy, c * dy - s * dx)
                 acc[base + q] += float(numerator) / max(d_sq, d_min * d_min)
             out[e, i] = acc
     return out
@@ -284,7 +285,7 @@ def _coarse_state(n_teams, n_rovers, seed):
     state.rover_headings[:] = rng.choice([0.0, math.pi / 2, 1.0, -2.5], (n_teams, n_rovers))
     state.poi_positions[:] = rng.integers(-8, 9, (n_teams, 4, 2)) * 1.0
     state.poi_values[:] = rng.uniform(0.5, 4.0, (n_teams, 4))
-    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    heading_trig(state.rover_headings, state.cos_h, state.sin_h)
     return state
 
 
@@ -299,27 +300,26 @@ def test_the_vectorised_quadrant_sensor_is_the_plain_loop_bit_for_bit(n_rovers, 
     state = _coarse_state(3, n_rovers, seed=n_rovers)
     obs = np.empty((3, n_rovers, 8), dtype=np.float32)
     radius_sq = None if radius is None else radius * radius
-    kernels.sense(state, 1.0, (0,) * 4, radius_sq, obs)
+    density.sense(state, 1.0, (0,) * 4, radius_sq, obs)
     np.testing.assert_array_equal(obs, _same_order_observe(state, 1.0, radius_sq))
 
 
 @pytest.mark.parametrize("n_rovers", [2, 7, 33, 90])
 @pytest.mark.parametrize("radius", [4.0, 2.0, 0.5])
 def test_the_grid_sensor_sees_the_plain_loops_neighbours_in_their_sectors(n_rovers, radius):
-    """The sensor's grid path (:func:`physrover.domain.sense_kernels._sense_local`, which
+    """The sensor's grid path (:func:`physrover.domain.density._sense_local`, which
     the world takes from SENSOR_GRID_MIN_POINTS rovers) called directly on small teams,
     with d_min = radius (a power of 2): every seen object's term is then 1 / radius^2 (V_k
     / radius^2 for a POI), so each sum is exact in any order and the observations are
     exactly the plain loop's only if every rover sees the same objects in the same
     sectors. Coarse positions: objects on quadrant boundaries, exactly at the radius, and
     on each other."""
-    from physrover.domain import sense_kernels
 
     state = _coarse_state(2, n_rovers, seed=n_rovers)
     state.poi_values[:] = 1.0  # exact sums of POI terms too
     obs = np.empty((2, n_rovers, 8), dtype=np.float32)
     for e in range(2):
-        sense_kernels._sense_local(e, state, radius * radius, 4, radius * radius, obs)
+        density._sense_local(e, state, radius * radius, 4, radius * radius, obs)
     np.testing.assert_array_equal(obs, _same_order_observe(state, radius, radius * radius))
     assert n_rovers == 2 or (obs[..., :4] > 0).any()  # the radius left some rovers in view
 
@@ -330,7 +330,6 @@ def test_the_grid_sensor_sums_as_the_plain_loop_to_rounding(n_rovers, radius):
     """Terms of every size: the grid path adds them in the grid's order, so a sum may
     differ from the plain loop's by float64 rounding, which float32 shows at most as one
     unit in the last place, and rarely."""
-    from physrover.domain import sense_kernels
 
     rng = np.random.default_rng(n_rovers)
     state = WorldState.zeros(3, n_rovers, 4)
@@ -338,10 +337,10 @@ def test_the_grid_sensor_sums_as_the_plain_loop_to_rounding(n_rovers, radius):
     state.rover_headings[:] = rng.uniform(-math.pi, math.pi, (3, n_rovers))
     state.poi_positions[:] = rng.uniform(-8, 8, (3, 4, 2))
     state.poi_values[:] = rng.uniform(0.5, 4.0, (3, 4))
-    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    heading_trig(state.rover_headings, state.cos_h, state.sin_h)
     obs = np.empty((3, n_rovers, 8), dtype=np.float32)
     for e in range(3):
-        sense_kernels._sense_local(e, state, 1.0, 4, radius * radius, obs)
+        density._sense_local(e, state, 1.0, 4, radius * radius, obs)
     expected = _same_order_observe(state, 1.0, radius * radius)
     np.testing.assert_array_max_ulp(obs, expected, maxulp=1)
     assert (obs == expected).mean() > 0.999
@@ -358,9 +357,9 @@ def test_a_team_above_the_grid_threshold_senses_as_the_plain_loop():
     state.rover_headings[:] = rng.uniform(-math.pi, math.pi, (1, n_rovers))
     state.poi_positions[:] = rng.uniform(-20, 20, (1, 4, 2))
     state.poi_values[:] = 1.0
-    kernels.heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+    heading_trig(state.rover_headings, state.cos_h, state.sin_h)
     obs = np.empty((1, n_rovers, 8), dtype=np.float32)
-    kernels.sense(state, 3.0, (0,) * 4, 9.0, obs)  # d_min = radius: exact sums, any order
+    density.sense(state, 9.0, (0,) * 4, 9.0, obs)  # d_min = radius: exact sums, any order
     np.testing.assert_array_equal(obs, _same_order_observe(state, 3.0, 9.0))
-    kernels.sense(state, 1.0, (0,) * 4, 9.0, obs)  # every size of term: to rounding
+    density.sense(state, 1.0, (0,) * 4, 9.0, obs)  # every size of term: to rounding
     np.testing.assert_array_max_ulp(obs, _same_order_observe(state, 1.0, 9.0), maxulp=1)

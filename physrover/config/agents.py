@@ -21,10 +21,12 @@ counts. A class sets:
   action);
 - ``bounds``: ``[x_min, x_max, y_min, y_max]``, a box its agents are clamped to after each
   move (idealised motion only);
-- ``influence_radius``: for the IndirectDifference credits (:mod:`physrover.domain.influence`),
-  how near its agents must be to a counted agent to be credited with its captures;
+- ``influence_radius``: for the IndirectDifference credits
+  (:mod:`physrover.domain.scoring.influence`), how near its agents must be to a counted
+  agent to be credited with its captures;
 - ``spawn``: where its agents start, the scenario's ``"disc"``, ``"fixed"`` positions, a
-  ``"box"`` or a ``"circle"`` (the lab's spawn rules; :func:`physrover.domain.roles.spawn`).
+  ``"box"`` or a ``"circle"`` (the lab's spawn rules;
+  :func:`physrover.domain.agents.classes.spawn`).
 
 Under physical motion a class's speed, frame and gate shape its bodies' commands (its
 bodies and limits are ``[physics]``'s, per agent); ``bounds`` are idealised motion's. The

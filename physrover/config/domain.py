@@ -8,7 +8,7 @@ tables (a name in two of them must be written ``table.field``).
 
 The scenario (start states) and the sensor (observations) are components chosen by name
 (``[scenario] kind = "ring"``, :mod:`physrover.domain.scenarios`; ``[sensor] kind =
-"density"``, :mod:`physrover.domain.sensors`); the motion model by ``[domain] motion``.
+"density"``, :mod:`physrover.domain.sensing.sensor`); the motion model by ``[domain] motion``.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ INTEGRATORS = ("auto", "pymunk", "compiled")
 
 @dataclasses.dataclass(frozen=True)
 class PhysicsConfig(ConfigBase):
-    """The physical motion model (``motion = "physics"``, :mod:`physrover.domain.physics`).
+    """The physical motion model (``motion = "physics"``, :mod:`physrover.domain.motion.physics`).
 
     Time unit: one environment step; lengths in world units; masses in mass units. The
     fields of :data:`PER_ROVER` take one number (every rover) or a list of one per rover (a

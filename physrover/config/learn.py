@@ -30,7 +30,8 @@ class LearnConfig(ConfigBase):
     """Fitness method (see the class docstring)."""
     feedback: str = "D"
     """The credit signal, each rover's immediate feedback: "D" (difference evaluation, Eq. 1),
-    "G", or any registered in :data:`physrover.core.registry.CREDITS` (physrover.domain.credit)."""
+    "G", or any registered in :data:`physrover.core.registry.CREDITS`
+    (physrover.domain.scoring.credit)."""
     generations: int = 5000
     """Generations to run."""
     seed: int = 0

@@ -24,7 +24,7 @@ With them, each table is one POI, in order, and may set:
   ``disappear = "captured"``, no longer sensed once captured (the earlier lab domain's).
 
 The scenario still places the POIs; ``poi_values`` is derived from the tables (values may
-repeat there). The compiled scoring is :func:`physrover.domain.kernels.score_team`.
+repeat there). The compiled scoring is :func:`physrover.domain.scoring.captures.score_team`.
 """
 
 from __future__ import annotations

@@ -7,7 +7,8 @@ researcher's script written for 0.4 still runs for one release, ``import physrov
 (or ``from physrover.runs import train``) gives a stand-in module whose attributes are
 those of the new modules, and warns once per old path. The stand-in is a module of its own
 (the new modules keep their names and specs); setting an attribute on it does not reach the
-new module. Installed by ``physrover/__init__.py``; removed in the release after 0.5.
+new module. Installed by ``physrover/__init__.py``; each old path is removed in the release
+after the one that moved it (0.5's wings, 0.6's domain folders).
 """
 
 from __future__ import annotations
@@ -45,6 +46,35 @@ OLD_PATHS: dict[str, tuple[str, ...]] = {
     "physrover.stats": ("physrover.core.stats",),
     "physrover.commands": ("physrover.cli.commands",),
     "physrover.marl.parallel_env": ("physrover.envs.pettingzoo_env",),
+    # physrover 0.6 organised the domain by concept (agents, motion, sensing, scoring)
+    "physrover.domain.kernels": (
+        "physrover.domain.motion.ideal",
+        "physrover.domain.scoring.captures",
+        "physrover.domain.sensing.density",
+        "physrover.domain.sensing.sectors",
+    ),
+    "physrover.domain.sense_kernels": (
+        "physrover.domain.sensing.density",
+        "physrover.domain.sensing.sectors",
+    ),
+    "physrover.domain.sensors": (
+        "physrover.domain.sensing.sensor",
+        "physrover.domain.sensing.density",
+    ),
+    "physrover.domain.lidar": ("physrover.domain.sensing.lidar",),
+    "physrover.domain.roles": (
+        "physrover.domain.agents.classes",
+        "physrover.domain.agents.roles",
+        "physrover.domain.sensing.sensor",
+    ),
+    "physrover.domain.dynamics": ("physrover.domain.motion.dynamics",),
+    "physrover.domain.physics": ("physrover.domain.motion.physics",),
+    "physrover.domain.physics_kernels": ("physrover.domain.motion.integrator",),
+    "physrover.domain.contacts": ("physrover.domain.motion.contacts",),
+    "physrover.domain.separation": ("physrover.domain.motion.separation",),
+    "physrover.domain.poi_rules": ("physrover.domain.scoring.rules",),
+    "physrover.domain.influence": ("physrover.domain.scoring.influence",),
+    "physrover.domain.credit": ("physrover.domain.scoring.credit",),
 }
 """{old module path: the modules that now hold what it held, searched in order}."""
 

@@ -101,7 +101,7 @@ class Registry(Generic[T]):
 FITNESS_METHODS: Registry = Registry("fitness method")
 
 #: Credit signals, the immediate feedback of each rover: name -> a
-#: :class:`physrover.domain.credit.Credit`.
+#: :class:`physrover.domain.scoring.credit.Credit`.
 CREDITS: Registry = Registry("credit signal")
 
 #: Gradient-based trainers (the MARL baselines): name -> a
@@ -112,10 +112,10 @@ TRAINERS: Registry = Registry("trainer")
 #: :class:`physrover.domain.scenarios.Scenario` subclass (``[scenario] kind``).
 SCENARIOS: Registry = Registry("scenario")
 
-#: Sensors, what a rover observes: name -> a :class:`physrover.domain.sensors.Sensor`
+#: Sensors, what a rover observes: name -> a :class:`physrover.domain.sensing.sensor.Sensor`
 #: subclass (``[sensor] kind``).
 SENSORS: Registry = Registry("sensor")
 
-#: Motion models: name -> a :class:`physrover.domain.dynamics.Dynamics` subclass
+#: Motion models: name -> a :class:`physrover.domain.motion.dynamics.Dynamics` subclass
 #: (``[domain] motion``).
 DYNAMICS: Registry = Registry("motion model")

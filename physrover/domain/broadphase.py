@@ -1,6 +1,6 @@
 """The broad phase of everything local: which pairs of points of a team lie within a reach.
 
-The contact pass (:func:`physrover.domain.contacts.speculative_contacts`) needs the
+The contact pass (:func:`physrover.domain.motion.contacts.speculative_contacts`) needs the
 pairs (i, j), i < j, of a team's rovers closer than the distance they could close within a
 physics step; a sensor with a finite radius the neighbours within its radius; the spawn's
 separation the pairs that overlap. Listing them by testing every pair

@@ -8,7 +8,7 @@ arrays natively) instead of a dozen positional arrays. Each group of arrays has 
   model from its bodies;
 - the scenario writes the POIs (``poi_positions``, ``poi_values``) at reset, and the
   obstacles (``obstacles``) once;
-- scoring (:func:`physrover.domain.kernels.score`, Eqs. 11-13) writes ``poi_counts``,
+- scoring (:func:`physrover.domain.scoring.captures.score_team`, Eqs. 11-13) writes ``poi_counts``,
   ``in_range``, ``captured``, ``captured_without``, ``capture_step`` and ``score``.
 
 The arrays are allocated once per world and updated in place; readers copy what they keep.
@@ -20,8 +20,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from physrover.domain.scoring import start_episode
-
 
 class WorldState(NamedTuple):
     """The state of E teams of R rovers and K POIs (see the module docstring)."""
@@ -31,7 +29,7 @@ class WorldState(NamedTuple):
     rover_headings: np.ndarray
     """(E, R) float64, radians in [-pi, pi]."""
     cos_h: np.ndarray
-    """(E, R) float64: cos of the headings (see :mod:`physrover.domain.kernels`)."""
+    """(E, R) float64: cos of the headings (see :mod:`physrover.domain.motion.ideal`)."""
     sin_h: np.ndarray
     """(E, R) float64: sin of the headings."""
     rover_velocities: np.ndarray
@@ -68,7 +66,7 @@ class WorldState(NamedTuple):
     ) -> WorldState:
         """A state of the given sizes (``steps`` per episode), every array allocated
         (C-contiguous) and zeroed, the scoring ones as at the start of an episode
-        (:func:`physrover.domain.scoring.start_episode`: no capture yet)."""
+        (:func:`physrover.domain.state.start_episode`: no capture yet)."""
         e, r, k = n_teams, n_rovers, n_pois
         state = cls(
             rover_positions=np.zeros((e, r, 2)),
@@ -88,3 +86,16 @@ class WorldState(NamedTuple):
         )
         start_episode(state)
         return state
+
+
+def start_episode(state: WorldState) -> None:
+    """Forget every capture in ``state``: the start of an episode, before step 0 is scored."""
+    state.poi_counts[:] = 0
+    state.in_range[:] = False
+    state.captured[:] = False
+    state.captured_without[:] = False
+    state.capture_step[:] = -1
+    state.score[:] = 0.0
+
+
+__all__ = ["WorldState", "start_episode"]

@@ -1,34 +1,25 @@
-"""RoverWorld: E independent teams of R rovers stepped together with array operations.
+"""RoverWorld: E independent teams of R agents stepped together.
 
-The world composes the domain's parts, each chosen by the config and each writing only its
-own part of the one :class:`~physrover.domain.state.WorldState`:
+The world holds the one :class:`~physrover.domain.state.WorldState`, the records of the
+episode and the plan of its step (:mod:`physrover.domain.plan`), built once from the config:
 
-- the scenario (:mod:`physrover.domain.scenarios`) draws the start state at reset;
-- the motion model (:mod:`physrover.domain.dynamics`) moves the rovers;
-- the sensor (:mod:`physrover.domain.sensors`) writes the observations (Eqs. 14-16);
-- scoring (:func:`physrover.domain.kernels.score`) the captures, G and D's records
-  (Eqs. 11-13, 1);
-
-whichever motion model moves the rovers, so every model senses and scores identically.
+- the scenario (:mod:`physrover.domain.scenarios`) draws the start state at reset, and the
+  classes' spawn rules (:func:`~physrover.domain.agents.classes.spawn`) move their agents;
+- every step is the one composition of :mod:`physrover.domain.step` (check and clip, move,
+  sense, score, record), one compiled call for every team; a motion model stepped from
+  Python (the physical model, a user's) moves the bodies between the check and the rest,
+  so every model senses and scores identically.
 
 Arrays carry the team axis first: positions (E, R, 2), headings (E, R), observations
-(E, R, n_obs), actions (E, R, 2). Per step the world
-
-1. checks (NaN is an error) and clips the actions to [-1, 1],
-2. moves the rovers with the motion model,
-3. senses and scores the new state,
-
-and records each rover's trajectory of (observation, action) pairs for the fitness critics.
-With the idealised model and the built-in sensor the whole step (1-3 and the records) is one
-compiled call, :func:`~physrover.domain.kernels.ideal_step` (and a learner's whole episode one
-call, :mod:`physrover.learn.rollout`); otherwise the parts are called
-in turn (the physical model steps its bodies, compiled or with pymunk, between the clip and
-the compiled sensing and scoring). Plain numpy versions of the same equations live in the tests
-(``tests/oracles.py``), which compare the two.
+(E, R, n_obs), actions (E, R, 2). The world records each agent's trajectory of
+(observation, action) pairs for the fitness critics; a learner's whole episode is one
+compiled call of the same step (:meth:`RoverWorld.play`). Plain numpy versions of the same
+equations live in the tests (``tests/oracles.py``), which compare the two.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any
@@ -37,12 +28,13 @@ import numpy as np
 
 from physrover.config import DomainConfig
 from physrover.core.registry import DYNAMICS
-from physrover.domain.kernels import ideal_step_flat, score
-from physrover.domain.poi_rules import PoiRules
-from physrover.domain.roles import class_sensors, spawn
+from physrover.domain.agents.classes import spawn
+from physrover.domain.motion.ideal import clip_teams
+from physrover.domain.plan import build_plan
 from physrover.domain.scenarios import StartState
-from physrover.domain.scoring import difference, start_episode
-from physrover.domain.state import WorldState
+from physrover.domain.scoring.difference import difference
+from physrover.domain.state import WorldState, start_episode
+from physrover.domain.step import step_teams
 
 ACTION_DIM = 2
 """Action components per rover: (forward, left) in the rover's frame."""
@@ -127,32 +119,29 @@ class RoverWorld:
         self.n_rovers = config.n_rovers
         self.n_pois = config.n_pois
         self.sensor = config.sensor
-        self.class_sensors = class_sensors(config)
-        """With ``[[agents]]`` or POIs some agents may not sense: (rows of the class, its
-        sensor, what it senses, a :class:`~physrover.domain.lidar.SensingView` or None, its
-        observation size) per class, in order."""
-        dims = [size for *_, size in self.class_sensors] or [self.sensor.dim]
-        self.obs_dim = int(max(dims))
-        """Observations per agent: the largest class's (a smaller class's are zero-padded)."""
         self.dynamics = DYNAMICS[config.motion](config, self.n_teams)
+        self.plan = build_plan(config, self.dynamics, self.n_teams)
+        """The plan of the step (:class:`~physrover.domain.plan.Plan`)."""
+        if self.plan.python_parts:
+            warnings.warn(
+                f"physrover: {', '.join(self.plan.python_parts)} brings no compiled kernel: "
+                "the world calls it from Python after every step",
+                stacklevel=2,
+            )
+        self.obs_dim = self.plan.obs_dim
+        """Observations per agent: the largest class's (a smaller class's are zero-padded)."""
         obstacles = config.scenario.obstacle_capsules()
         self.state = WorldState.zeros(
             self.n_teams, self.n_rovers, self.n_pois, config.steps, len(obstacles)
         )
         self.state.obstacles[:] = obstacles
-        self.n_req = np.array(config.n_req_per_poi, dtype=np.int64)  # (K,) coupling per POI
-        self.poi_rules = PoiRules.build(config, self.n_teams)  # None: the paper's POIs
-        self._scores_final_state = config.scored_states == "all"
         shape = (config.steps, self.n_teams, self.n_rovers)
         self.observations = np.zeros((*shape, self.obs_dim), dtype=np.float32)
         self.actions = np.zeros((*shape, ACTION_DIM), dtype=np.float32)
         states = (config.steps + 1, self.n_teams, self.n_rovers)
         self.position_history = np.zeros((*states, 2))
         self.heading_history = np.zeros(states)
-        # idealised motion, the built-in sensor and the paper's POIs: one compiled call a step
-        self._fused = self.dynamics.fused and self.sensor.fused and self.poi_rules is None
-        if self._fused:  # the density sensor's parameters, as the step kernel takes them
-            self._sensing = self.sensor.kernel_arguments(config.d_min)
+        self._clipped = np.zeros((self.n_teams, self.n_rovers, ACTION_DIM))
         self.fresh_teams = 0
         """Under the scenario's redraw = "generation", the last this many teams draw their own
         start states (the CCEA's evaluation episodes); the others share one."""
@@ -192,10 +181,11 @@ class RoverWorld:
         state.poi_values[:] = values
         self.dynamics.reset(state)  # may push overlapping spawns apart
         start_episode(state)
-        if self.poi_rules is not None:
-            self.poi_rules.start()
+        if self.plan.step.rules is not None:
+            self.plan.step.rules.start()
         self.t = 0
-        return self._sense_and_score()
+        # state 0: sensed, scored and recorded by the step without its motion
+        return self._step(self._clipped, self.plan.step._replace(motion=None), 0)
 
     def _draw(self, rngs: Sequence[np.random.Generator]) -> StartState:
         """The scenario's start states for this reset, under its redraw mode."""
@@ -236,83 +226,72 @@ class RoverWorld:
         expected = (self.n_teams, self.n_rovers, ACTION_DIM)
         if actions.shape != expected:
             raise ValueError(f"actions must have shape {expected}, got {actions.shape}")
-        if self._fused:
-            return self._step_compiled(actions)
-        if np.isnan(actions.sum()) and np.isnan(actions).any():  # the sum is the cheap test
-            raise ValueError("actions contain NaN")
-        actions = np.clip(actions, -1.0, 1.0, dtype=np.float64)
-        self.actions[self.t] = actions
-        self.dynamics.step(self.state, actions)
-        self.t += 1
-        return self._sense_and_score()
-
-    def _step_compiled(self, actions: np.ndarray) -> np.ndarray:
-        """The idealised step with the built-in sensor as one kernel call."""
-        if actions.dtype not in (np.float32, np.float64):
+        t = self.t
+        plan = self.plan.step
+        if plan.motion is None:  # a motion model stepped from Python moves the bodies first
+            if not clip_teams(actions, self._clipped, self.actions[t]):
+                raise ValueError("actions contain NaN")
+            self.dynamics.step(self.state, self._clipped)
+            actions = self._clipped
+        elif actions.dtype not in (np.float32, np.float64):
             actions = actions.astype(np.float64)
-        cfg, t = self.config, self.t
+        return self._step(actions, plan, t + 1)
+
+    def _step(self, commands: np.ndarray, plan, t: int) -> np.ndarray:
+        """The compiled step to state ``t`` (state 0 at reset, with a plan without motion)
+        and its records; returns the new observations."""
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
-        ok = ideal_step_flat(
-            actions, *self._sensing, cfg.d_cap, self.n_req, t + 1, self._scored(t + 1),
-            self.actions[t], self.position_history[t + 1], self.heading_history[t + 1], obs,
-            *self.state,
-        )  # fmt: skip
+        actions = self.actions[max(t - 1, 0)]  # step t's clipped commands (none at reset)
+        ok = step_teams(commands, t, plan, actions, obs, self.position_history[t],
+                        self.heading_history[t], *self.state)  # fmt: skip
         if not ok:
             raise ValueError("actions contain NaN")
-        self.t = t + 1
-        if self.t < cfg.steps:
-            self.observations[self.t] = obs
-        return obs
-
-    def _sense_and_score(self) -> np.ndarray:
-        """Sense and score the current state (step ``t``) and record it."""
-        cfg, t = self.config, self.t
-        obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
-        if self.class_sensors:
-            self._observe_classes(obs)
-        else:
-            self.sensor.observe(self.state, cfg.d_min, obs)
-        if self._scored(t):
-            score(self.state, cfg.d_cap, self.n_req, t, self.poi_rules)
-        self.position_history[t] = self.state.rover_positions
-        self.heading_history[t] = self.state.rover_headings
-        if t < cfg.steps:
+        self._observe_in_python(obs)
+        self.t = t
+        if t < self.config.steps:
             self.observations[t] = obs
         return obs
 
-    def _observe_classes(self, obs: np.ndarray) -> None:
-        """Each class's observations through its own sensor, in its rows' first columns;
-        the columns past a class's size are 0."""
-        obs[:] = 0.0
-        for rows, sensor, view, size in self.class_sensors:
-            if view is not None:  # a lidar: senses for the class's rows, into their columns
+    def _observe_in_python(self, obs: np.ndarray) -> None:
+        """The classes whose sensor brings no kernel, observed from Python into their rows
+        (the columns past a class's size 0)."""
+        for rows, sensor, view, size in self.plan.python_sensors:
+            if view is not None:  # a class-aware sensor (a lidar's subclass)
+                obs[:, rows] = 0.0
                 sensor.observe_class(self.state, self.config.d_min, obs, view, rows)
                 continue
-            scratch = np.empty((self.n_teams, self.n_rovers, size), dtype=np.float32)
+            scratch = np.zeros((self.n_teams, self.n_rovers, size), dtype=np.float32)
             sensor.observe(self.state, self.config.d_min, scratch)
+            obs[:, rows] = 0.0
             obs[:, rows, :size] = scratch[:, rows]
 
-    @property
-    def fused(self) -> bool:
-        """Whether the step is one compiled call (idealised motion, built-in sensor): what a
-        whole-episode kernel (:mod:`physrover.learn.rollout`) can compile around."""
-        return self._fused
+    def play(self, episode) -> None:
+        """Play the rest of the episode of a just reset world with a compiled ``episode``
+        (:mod:`physrover.learn.rollout`): ``episode(plan, observations, actions,
+        position_history, heading_history, *state)`` -> False if a command was NaN (the
+        world is then mid-episode: reset it). It steps with :func:`step_team`, so the
+        world ends at its last step (``done``), its records filled as by ``steps`` calls
+        of :meth:`step`."""
+        if self.t != 0:
+            raise RuntimeError(f"a compiled episode starts from a reset world, not step {self.t}")
+        if self.plan.step.motion is None or self.plan.python_sensors:
+            raise RuntimeError("only a world whose whole step is compiled plays a compiled episode")
+        ok = episode(self.plan.step, self.observations, self.actions, self.position_history,
+                     self.heading_history, *self.state)  # fmt: skip
+        if not ok:
+            raise ValueError("actions contain NaN")
+        self.t = self.config.steps
 
     @property
-    def sensing(self) -> tuple:
-        """The fused step's sensing arguments ``(d_min, sectors, radius_sq)``."""
-        if not self._fused:
-            raise AttributeError("only a fused world has compiled sensing arguments")
-        return self._sensing
+    def n_req(self) -> np.ndarray:
+        """(K,) int64: each POI's coupling (Eq. 12)."""
+        return self.plan.step.n_req
 
     @property
-    def scores_final_state(self) -> bool:
-        """Whether the state after the last step counts for captures (``scored_states``)."""
-        return self._scores_final_state
-
-    def _scored(self, t: int) -> bool:
-        """Whether state t counts for captures (``scored_states``: the final one may not)."""
-        return t < self.config.steps or self._scores_final_state
+    def compiled(self) -> bool:
+        """Whether the whole step is one compiled call (idealised motion, built-in sensors):
+        what a whole compiled episode (:meth:`play`) needs."""
+        return self.plan.step.motion is not None and not self.plan.python_sensors
 
     # -- results -----------------------------------------------------------------------------
 

@@ -18,7 +18,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from physrover.config import DomainConfig
-from physrover.domain.sensors import sensor_size
+from physrover.domain.sensing.sensor import sensor_size
 from physrover.domain.world import ACTION_DIM, RoverWorld, StartOverrides
 
 ENV_ID = "physrover/Rover-v0"
@@ -72,7 +72,7 @@ class RoverEnv(gymnasium.Env):
     to [-1, 1]; NaN raises ``ValueError``.
 
     ## Observation Space
-    ``(R, n_obs)`` float32 from the configured sensor (:mod:`physrover.domain.sensors`). The
+    ``(R, n_obs)`` float32 from the configured sensor (:mod:`physrover.domain.sensing.sensor`). The
     paper's (``[sensor] kind = "density"``, 4 sectors): ``Box(0, inf, (R, 8), float32)``, per
     rover the rover density in its quadrants 0-3 (Eq. 15) then POI value density in
     quadrants 0-3 (Eq. 16); quadrants 0 behind-right, 1 front-right, 2 front-left, 3

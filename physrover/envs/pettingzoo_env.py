@@ -17,7 +17,8 @@ import numpy as np
 from gymnasium import spaces
 
 from physrover.config import DomainConfig
-from physrover.domain.roles import agent_names, agent_obs_sizes
+from physrover.domain.agents.classes import agent_names
+from physrover.domain.sensing.sensor import agent_obs_sizes
 from physrover.domain.world import StartOverrides
 from physrover.envs.gymnasium_env import RoverEnv, resolve_config
 

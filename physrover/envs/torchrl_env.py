@@ -32,7 +32,8 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from physrover.domain.roles import agent_names, agent_obs_sizes, class_rows
+from physrover.domain.agents.classes import agent_names, class_rows
+from physrover.domain.sensing.sensor import agent_obs_sizes
 from physrover.envs.gymnasium_env import RoverVectorEnv
 
 GROUP = "rover"

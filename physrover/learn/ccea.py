@@ -10,7 +10,7 @@ One generation, everything batched over teams and rovers (R rovers, k policies e
    later code (``[learn]``): softmax team formation (:mod:`physrover.learn.teams`) and
    elite teams replayed after the training teams (:mod:`physrover.learn.team_elites`).
 2. **Feedback.** Each policy's immediate feedback (its credit: D, G or a registered signal,
-   :mod:`physrover.domain.credit`) and trajectory.
+   :mod:`physrover.domain.scoring.credit`) and trajectory.
 3. **Fitness** from the fitness method (D, G, average, leniency or a fitness critic).
 4. **Evolution**: binary tournament with Cauchy mutation (:mod:`physrover.learn.evolution`),
    or the lab's n-elites tournament (``selection = "elites"``: the champion is elite 0).

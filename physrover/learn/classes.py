@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from physrover.domain.roles import class_rows
-from physrover.domain.sensors import sensor_size
+from physrover.domain.agents.classes import class_rows
+from physrover.domain.sensing.sensor import sensor_size
 from physrover.learn.policies import PolicyLayout
 
 

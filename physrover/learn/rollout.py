@@ -4,7 +4,7 @@
 (one genome per rover of each team). Under idealised motion with the built-in sensor (the
 world's fused step) the whole episode is one compiled call, :func:`ideal_episode`: for each
 team, every step's policy forward pass (:func:`~physrover.learn.forward.forward_team`), move,
-sense and score (the world step's own kernels, :mod:`physrover.domain.kernels`) and the
+sense and score (the world step's own kernels, :mod:`physrover.domain.step`) and the
 records, team by team while the team's data is in cache. Otherwise (physical motion, custom
 parts) it steps the world, calling the policy's compiled forward pass in between.
 
@@ -20,8 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from physrover.core.compiled import dims, jit
-from physrover.domain.kernels import move_team, score_team, sense_scratch, sense_team
+from physrover.domain.motion.ideal import commands_ok
 from physrover.domain.state import WorldState
+from physrover.domain.step import step_scratch, step_team
 from physrover.domain.world import RoverWorld
 from physrover.learn.forward import forward_team, policy_forward
 
@@ -57,55 +58,46 @@ class TeamPolicy:
 
 
 @jit
-def ideal_episode(genomes, hidden, in_dims, d_min, sectors, radius_sq, d_cap, n_req, score_last,
-                  headings, observations, actions, position_history, heading_history,
-                  *state):  # fmt: skip
+def policy_episode(genomes, hidden, in_dims, headings, plan, observations, actions,
+                   position_history, heading_history, *state):  # fmt: skip
     """Steps 1 .. T of an episode of every team (after the world's reset, which sensed and
     scored step 0), the policies choosing the commands: for each team and step, the forward
-    pass of its rovers' ``genomes`` (E, R, P) on ``observations[t]``, the idealised move
-    (commands recorded in ``actions[t]``), sensing into ``observations[t + 1]`` (the last
-    step's into scratch), scoring of step t + 1 (the last one if ``score_last``), and the
-    rovers' positions and headings (NaN unless ``headings``) in the histories. The sensing
-    parameters are those of :func:`~physrover.domain.kernels.ideal_step`; ``*state`` is the
-    world's :class:`~physrover.domain.state.WorldState`, arrays one by one. Returns False
-    if a policy gives a NaN command (the world is then mid-episode: reset it).
-    """
+    pass of its agents' ``genomes`` (E, R, P) on ``observations[t]``, then the world's step
+    (:func:`~physrover.domain.step.step_team` under ``plan``, the world's
+    :class:`~physrover.domain.plan.StepPlan`) into ``observations[t + 1]`` (the last step's
+    into scratch), the records and the histories (headings NaN unless ``headings``).
+    ``*state`` is the world's :class:`~physrover.domain.state.WorldState`, arrays one by
+    one. Returns False if a policy gives a NaN command (the world is then mid-episode:
+    reset it)."""
     st = WorldState(*state)
     n_teams, n_rovers = st.cos_h.shape
     steps = observations.shape[0]
     h = np.empty(hidden, np.float32)
     commands = np.empty((n_teams, n_rovers, 2), np.float32)
     last_obs = np.empty((n_teams, n_rovers, observations.shape[3]), np.float32)
-    scratch = sense_scratch(n_rovers, sectors)
-    d_min_sq, d_cap_sq = d_min * d_min, d_cap * d_cap
+    scratch = step_scratch(plan, n_rovers)
     for e in range(n_teams):
         for t in range(steps):
             forward_team(genomes[e], hidden, observations[t, e], commands[e], in_dims, h)
-            for i in range(n_rovers):
-                if np.isnan(commands[e, i, 0]) or np.isnan(commands[e, i, 1]):
-                    return False
-            move_team(e, commands, st, actions[t], headings)
+            if not commands_ok(commands[e]):
+                return False
             obs = observations[t + 1] if t + 1 < steps else last_obs
-            sense_team(e, st, d_min_sq, sectors, radius_sq, obs, scratch)
-            if t + 1 < steps or score_last:
-                score_team(e, st, d_cap_sq, n_req, t + 1)
-            for i in range(n_rovers):
-                position_history[t + 1, e, i, 0] = st.rover_positions[e, i, 0]
-                position_history[t + 1, e, i, 1] = st.rover_positions[e, i, 1]
-                heading_history[t + 1, e, i] = st.rover_headings[e, i]
+            step_team(e, t + 1, commands, plan, st, actions[t], obs, position_history[t + 1],
+                      heading_history[t + 1], headings, scratch)  # fmt: skip
     return True
 
 
 def play_episode(world: RoverWorld, obs: np.ndarray, policy, headings: bool = True) -> None:
     """Play the episode of a just reset ``world`` (its observations ``obs``) under
-    ``policy`` to its end: one compiled call if the world's step is fused and ``policy`` is
-    a :class:`TeamPolicy`, else a step loop calling ``policy(obs)``. ``headings=False`` lets
-    the compiled episode skip the heading angles (module docstring). The world ends at its
-    last step (``world.done``), its records filled as by ``steps`` calls of ``world.step``.
+    ``policy`` to its end: one compiled call if the world's step is compiled and ``policy``
+    is a :class:`TeamPolicy`, else a step loop calling ``policy(obs)``. ``headings=False``
+    lets the compiled episode skip the heading angles (module docstring). The world ends at
+    its last step (``world.done``), its records filled as by ``steps`` calls of
+    ``world.step``.
     """
     if world.t != 0:
         raise RuntimeError(f"play_episode starts from a reset world, not from step {world.t}")
-    if not (world.fused and isinstance(policy, TeamPolicy)):
+    if not (world.compiled and isinstance(policy, TeamPolicy)):
         for _ in range(world.config.steps):
             obs = world.step(policy(obs))
         return
@@ -116,12 +108,11 @@ def play_episode(world: RoverWorld, obs: np.ndarray, policy, headings: bool = Tr
         )
     if policy.n_in != world.obs_dim:
         raise ValueError(f"policies take {policy.n_in} inputs, the sensor gives {world.obs_dim}")
-    cfg = world.config
-    ok = ideal_episode(
-        policy.genomes, policy.hidden, policy.dims, *world.sensing, cfg.d_cap, world.n_req,
-        world.scores_final_state, bool(headings), world.observations, world.actions,
-        world.position_history, world.heading_history, *world.state,
-    )  # fmt: skip
-    if not ok:  # the world is left mid-episode (t unchanged): reset it
-        raise ValueError("actions contain NaN")
-    world.t = cfg.steps
+    genomes, hidden, in_dims, with_headings = (
+        policy.genomes,
+        policy.hidden,
+        policy.dims,
+        bool(headings),
+    )
+    world.play(lambda *records: policy_episode(genomes, hidden, in_dims, with_headings,
+                                               *records))  # fmt: skip

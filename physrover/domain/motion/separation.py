@@ -1,6 +1,6 @@
 """Overlapping spawns pushed apart: rovers placed on each other by a scenario (or by
 ``reset(options=...)``) are moved until no pair overlaps by more than a tolerance, before
-the physical world takes them (:meth:`physrover.domain.physics.PhysicsMotion.reset`).
+the physical world takes them (:meth:`physrover.domain.motion.physics.PhysicsMotion.reset`).
 
 :func:`separate` is the entry point; :func:`separate_teams` its compiled loop, which tests
 every pair in small teams and takes the pairs from the grid

@@ -1,4 +1,5 @@
-"""Compiled kernels of the physical model's controller (see :mod:`physrover.domain.physics`).
+"""Compiled kernels of the physical model's controller (see
+:mod:`physrover.domain.motion.physics`).
 
 Everything the physical model computes around pymunk, in one call per physics step
 (:func:`substep`): the drive and steering controller (velocity and heading setpoints
@@ -13,9 +14,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from physrover.core.compiled import jit
-from physrover.domain.contacts import contact_sweeps, speculative_contacts
-from physrover.domain.kernels import _move
+from physrover.domain.agents.roles import class_command, gate_free
+from physrover.domain.motion.contacts import contact_sweeps, speculative_contacts
+from physrover.domain.motion.ideal import ideal_move
 
 
 @jit
@@ -33,16 +37,26 @@ def wrap_angles(angles, out):
 
 
 @jit
-def setpoints(actions, headings, cos_h, sin_h, max_speed, target_v, target_heading):
+def setpoints(actions, positions, headings, cos_h, sin_h, max_speed, roles, target_v,
+              target_heading):  # fmt: skip
     """The step's setpoints from (E, R, 2) clipped commands and (E, R) headings (their
     cosines and sines ``cos_h``, ``sin_h``): the world velocity (E, R, 2), the idealised
-    model's move (world units per step) scaled down to each rover's ``max_speed`` (R,; None:
+    model's move (world units per step; an agent class's move under ``roles``, a
+    :class:`~physrover.domain.agents.roles.Roles` or None, its gate judged from the (E, R,
+    2) ``positions`` before the step) scaled down to each rover's ``max_speed`` (R,; None:
     no limit) if longer, and the heading (E, R), its direction (the current heading for a
-    zero command); the same arithmetic as the idealised step (``kernels._move``)."""
+    zero command): the same arithmetic as the idealised step
+    (:mod:`physrover.domain.motion.ideal`)."""
+    free = np.ones(headings.shape[1], dtype=np.bool_)
     for e in range(headings.shape[0]):
+        if roles is not None:
+            gate_free(e, positions, roles, free)
         for i in range(headings.shape[1]):
-            mx, my, new_heading = _move(cos_h[e, i], sin_h[e, i], headings[e, i],
-                                        actions[e, i, 0], actions[e, i, 1], True)  # fmt: skip
+            fwd, left = actions[e, i, 0], actions[e, i, 1]
+            c, s = cos_h[e, i], sin_h[e, i]
+            if roles is not None:
+                fwd, left, c, s = class_command(i, fwd, left, free, roles, c, s)
+            mx, my, new_heading = ideal_move(c, s, headings[e, i], fwd, left, True)
             if max_speed is not None:  # compiled out without a speed limit
                 speed = math.hypot(mx, my)
                 if speed > max_speed[i]:
@@ -57,13 +71,13 @@ def control(
     state, target_v, target_heading, first, dt, max_dv, max_dw, alpha_max, mass, moment, out
 ):
     """The controller of one physics step, for every rover (the module docstring of
-    :mod:`physrover.domain.physics` gives the control law).
+    :mod:`physrover.domain.motion.physics` gives the control law).
 
     Args:
         state: (E, R, 6) x, y, angle, vx, vy, w of the bodies now.
         target_v: (E, R, 2), target_heading: (E, R): the step's setpoints.
         max_dv, max_dw, alpha_max, mass, moment: (R,) each rover's limits per physics step
-            and body (:class:`physrover.domain.physics.PhysicsMotion`).
+            and body (:class:`physrover.domain.motion.physics.PhysicsMotion`).
         first: whether this is the step's first physics step: the drive acts as an impulse
             (written into the velocity, it moves the body within this physics step);
             afterwards as a force and torque (which Chipmunk applies after moving the body,

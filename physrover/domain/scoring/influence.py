@@ -35,10 +35,10 @@ from __future__ import annotations
 import numpy as np
 
 from physrover.core.compiled import jit
-from physrover.domain.kernels import coupling_met, predecessors_before
-from physrover.domain.poi_rules import PoiRules
-from physrover.domain.roles import per_agent
-from physrover.domain.scoring import team_score
+from physrover.domain.agents.classes import per_agent
+from physrover.domain.scoring.captures import coupling_met, last_scored_step, predecessors_before
+from physrover.domain.scoring.difference import team_score
+from physrover.domain.scoring.rules import PoiRules
 
 TIMESCALES = ("trajectory", "step")
 
@@ -47,12 +47,10 @@ def influence(world) -> np.ndarray:
     """phi (T_s, E, R, R) bool, ``[t, e, u, k]``: u influences k at scored step t (the
     module docstring) of the episode ``world`` just played; T_s scored steps."""
     config = world.config
-    rows = config.steps + 1 if world.scores_final_state else config.steps  # scored steps
-    positions = world.position_history[:rows]  # (T_s, E, R, 2)
+    positions = world.position_history[: last_scored_step(config) + 1]  # (T_s, E, R, 2)
     n = world.n_rovers
     radius = per_agent(config, [c.influence_radius for c in config.agents], 0.0)
-    counted = (world.poi_rules.counted if world.poi_rules is not None
-               else np.ones(n, dtype=bool))  # fmt: skip
+    counted = per_agent(config, [c.captures for c in config.agents], True).astype(bool)
     offset = positions[:, :, :, None, :] - positions[:, :, None, :, :]
     dist_sq = (offset * offset).sum(-1)  # (T_s, E, u, k)
     phi = dist_sq <= (radius * radius)[:, None]
@@ -79,7 +77,7 @@ def removal_sets(phi: np.ndarray, timescale: str) -> np.ndarray:
 def replay_captures(in_range, removed, n_req, rules, out):
     """``out[e, a, k]``: POI k captured in team e's episode with the (t, i) of
     ``removed[e, a]`` (T_s, R) left out of the counts (Eq. 12 under the POIs' ``rules``, a
-    :class:`~physrover.domain.poi_rules.PoiRules`: the same :func:`coupling_met` and
+    :class:`~physrover.domain.scoring.rules.PoiRules`: the same :func:`coupling_met` and
     order as the episode's scoring), from the episode's record ``in_range`` (T + 1, E, R,
     K)."""
     n_teams, n_sets, n_steps, n_agents = removed.shape
@@ -111,7 +109,7 @@ def indirect_difference(world, timescale: str = "trajectory") -> np.ndarray:
         raise ValueError(f"timescale must be one of {TIMESCALES}, got {timescale!r}")
     phi = influence(world)
     removed = removal_sets(phi, timescale)
-    rules = world.poi_rules or PoiRules.build(world.config, world.n_teams, always=True)
+    rules = world.plan.step.rules or PoiRules.build(world.config, world.n_teams, always=True)
     captured = np.empty((world.n_teams, world.n_rovers, world.n_pois), dtype=bool)
     replay_captures(world.state.in_range, removed, world.n_req, rules, captured)
     return world.G[:, None] - team_score(captured, world.state.poi_values)

@@ -20,22 +20,23 @@ with ``num`` 1 for a rover and V_k for POI k. A sector's channel *composes* its 
 
 and a channel with no object in its sector reads ``empty`` (the lab: -1; 0 is the density
 sensor's). ``bearing = "heading"`` measures sectors from dead behind, counter-clockwise
-relative to the rover's heading (:func:`~physrover.domain.sense_kernels.sector`, the density
-sensor's convention); ``"world"`` from the +x axis whatever the heading, sector 0 =
-[0, 360/n) degrees counter-clockwise (the lab's ``l2a``: ``atan2`` in degrees, +360 if
-negative, ``int(angle / (360 / n))``, 360 -> 0).
+relative to the rover's heading (:func:`~physrover.domain.sensing.sectors.sector`, the
+density sensor's convention); ``"world"`` from the +x axis whatever the heading, sector 0 =
+[0, 360/n) degrees counter-clockwise (:func:`~physrover.domain.sensing.sectors.world_sector`).
 
 ``channels = "by-class"`` gives each agent class (``[[agents]]``) its own block of
 sectors, then the POIs' (the lab's SmartLidar: ``[rovers | UAVs | POIs]``). A class senses
 only the POIs visible to it (``[[pois]] visible_to``), each within its ``sense_radius``,
 and none that ``disappear`` once captured (from the step after the capture): what a class
-senses is its :class:`SensingView`, which the world passes to :meth:`Lidar.observe_class`.
+senses is its :class:`SensingView`.
 
 Terms are added rovers by index, then POIs, in float64, as the density sensor adds them,
 so ``lidar`` with ``compose = "density"``, ``bearing = "heading"``, ``empty = 0`` and the
 inverse-square measure is the density sensor bit for bit (a test; up to float64 rounding
-where the density sensor uses its grid, a finite radius and 100+ rovers). Cost: every pair
-of a team is visited (R^2 per team and step, not compiled into the idealised step).
+where the density sensor uses its grid, a finite radius and 100+ rovers). The compiled
+step reads every class's lidar through one table (:mod:`physrover.domain.sensing.classes`);
+in a large team a finite radius finds its neighbours from a grid, in index order, so the
+readings are the all-pairs ones bit for bit.
 """
 
 from __future__ import annotations
@@ -47,10 +48,10 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from physrover.config import check, check_choice
-from physrover.core.compiled import jit
-from physrover.domain.roles import agent_classes
-from physrover.domain.sense_kernels import sector
-from physrover.domain.sensors import Sensor, register_sensor
+from physrover.core.compiled import jit, jit_inline
+from physrover.domain.agents.classes import agent_classes, class_names
+from physrover.domain.sensing.sectors import sector, world_sector
+from physrover.domain.sensing.sensor import Sensor, register_sensor
 
 COMPOSE = ("density", "average", "closest")
 CHANNELS = ("agents-pois", "by-class")
@@ -120,7 +121,7 @@ class Lidar(Sensor):
         by_class = self.channels == "by-class"
         agent_base = (agent_class * n if by_class else np.zeros_like(agent_class)).astype(int)
         poi_base = max(len(classes), 1) * n if by_class else n
-        name = classes[c].name if classes else "rover"
+        name = class_names(domain)[c]
         pois = domain.pois
         if not pois:
             return SensingView(agent_base, poi_base, np.ones(k, bool), np.full(k, math.inf),
@@ -131,6 +132,8 @@ class Lidar(Sensor):
         return SensingView(agent_base, poi_base, visible, radius_sq, disappear)
 
     def observe(self, state, d_min: float, out: np.ndarray) -> None:
+        """Every agent of ``state`` through this lidar, seeing everything (no classes, no
+        POI rules): what a world without ``[[agents]]`` and ``[[pois]]`` senses."""
         n_agents, n_pois = state.cos_h.shape[1], state.poi_positions.shape[1]
         self.observe_class(state, d_min, out, SensingView.everything(n_agents, n_pois,
                                                                      self.sectors))  # fmt: skip
@@ -140,13 +143,13 @@ class Lidar(Sensor):
         """:meth:`observe` as agents of one class see: the channels and POIs of ``view``,
         for the agents of ``rows`` only (a slice of the team, default all), into their rows
         of ``out`` (E, R, >= this sensor's size) and its first columns; the rest of ``out``
-        is left as it was."""
+        is left as it was. The all-pairs kernel, one agent at a time (:func:`lidar_agent`)."""
         radius_sq = self.radius * self.radius if math.isfinite(self.radius) else math.inf
         first, stop, _ = (rows or slice(None)).indices(state.cos_h.shape[1])
         n_channels = view.poi_base + self.sectors  # the POIs' block is the last
-        lidar(state, d_min * d_min, self.sectors, radius_sq, COMPOSE.index(self.compose),
-              MEASURES.index(self.measure), self.empty, self.bearing == "world",
-              *view, first, stop, n_channels, out)  # fmt: skip
+        lidar_rows(state, d_min * d_min, self.sectors, radius_sq, COMPOSE.index(self.compose),
+                   MEASURES.index(self.measure), self.empty, self.bearing == "world", *view,
+                   first, stop, n_channels, out)  # fmt: skip
 
 
 class SensingView(NamedTuple):
@@ -172,81 +175,79 @@ class SensingView(NamedTuple):
                    np.full(n_pois, math.inf), np.zeros(n_pois, bool))  # fmt: skip
 
 
-@jit
-def _world_sector(dx: float, dy: float, n_sectors: int) -> int:
-    """The lab's ``l2a`` sector of an offset (dx, dy) in the world frame (module docstring)."""
-    angle = math.degrees(math.atan2(dy, dx))
-    if angle < 0.0:
-        angle += 360.0
-    q = np.int64(angle / (360.0 / n_sectors))
-    return q if q < n_sectors else 0
-
-
-@jit
-def _add(acc, count, q, term, compose):
-    """Compose ``term`` into channel q: a sum, or the largest term (``compose`` 2)."""
-    if compose == 2:
-        acc[q] = max(acc[q], term) if count[q] > 0 else term
-    else:
-        acc[q] += term
-    count[q] += 1
-
-
-@jit
-def _term(num, dist_sq, d_min_sq, radius_sq, measure):
-    if measure == 0:
-        return num / max(dist_sq, d_min_sq)  # Eq. 14
-    return num * (1.0 - math.sqrt(dist_sq) / math.sqrt(radius_sq))
-
-
-@jit
-def lidar(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world, agent_base,
-          poi_base, visible, poi_radius_sq, disappear, first, stop, n_channels, obs):  # fmt: skip
-    """The lidar readings of agents ``first`` to ``stop - 1`` of every team of ``state``
-    into ``obs[:, first:stop, :n_channels]``: ``compose`` and ``measure`` are indices into
-    :data:`COMPOSE` and :data:`MEASURES`, ``radius_sq`` inf for no radius, ``world`` the
-    world-frame bearing (module docstring); ``agent_base`` to ``disappear`` a
-    :class:`SensingView`."""
-    positions, cos_h, sin_h = state.rover_positions, state.cos_h, state.sin_h
+@jit_inline
+def lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world,
+                agent_base, poi_base, visible, poi_radius_sq, disappear, n_channels,
+                candidates, n_candidates, acc, count, obs):  # fmt: skip
+    """The lidar reading of agent i of team e into ``obs[e, i, :n_channels]``: the agents
+    ``candidates[:n_candidates]`` (ascending: every agent, or those a grid found near),
+    then every POI, each within its distance adding its term to its channel; ``compose``
+    and ``measure`` index :data:`COMPOSE` and :data:`MEASURES`, ``radius_sq`` is inf for no
+    radius, ``world`` the world-frame bearing (module docstring); ``agent_base`` to
+    ``disappear`` a :class:`SensingView`; ``acc``, ``count`` (>= n_channels) scratch."""
+    positions = state.rover_positions
     poi_positions, poi_values = state.poi_positions, state.poi_values
-    n_teams, n_rovers = cos_h.shape
+    c, s = state.cos_h[e, i], state.sin_h[e, i]
+    xi, yi = positions[e, i, 0], positions[e, i, 1]
+    for q in range(n_channels):
+        acc[q] = 0.0
+        count[q] = 0
+    n_rovers = n_candidates
+    for m in range(n_candidates + poi_positions.shape[1]):  # agents by index, then POIs
+        if m < n_rovers:
+            j = candidates[m]
+            if j == i:
+                continue
+            dx, dy = positions[e, j, 0] - xi, positions[e, j, 1] - yi
+            num, base, within = 1.0, agent_base[j], radius_sq
+        else:
+            k = m - n_rovers
+            if not visible[k] or (disappear[k] and state.captured[e, k]):
+                continue
+            dx, dy = poi_positions[e, k, 0] - xi, poi_positions[e, k, 1] - yi
+            num, base = poi_values[e, k], poi_base
+            within = min(radius_sq, poi_radius_sq[k])
+        dist_sq = dx * dx + dy * dy
+        if dist_sq > within:
+            continue
+        if world:
+            q = base + world_sector(dx, dy, n_sectors)
+        else:
+            q = base + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
+        if measure == 0:
+            term = num / max(dist_sq, d_min_sq)  # Eq. 14
+        else:
+            term = num * (1.0 - math.sqrt(dist_sq) / math.sqrt(radius_sq))
+        if compose == 2:  # closest: the largest term
+            acc[q] = max(acc[q], term) if count[q] > 0 else term
+        else:
+            acc[q] += term
+        count[q] += 1
+    for q in range(n_channels):
+        if count[q] == 0:
+            obs[e, i, q] = empty
+        elif compose == 1:
+            obs[e, i, q] = acc[q] / count[q]
+        else:
+            obs[e, i, q] = acc[q]
+
+
+@jit
+def lidar_rows(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world,
+               agent_base, poi_base, visible, poi_radius_sq, disappear, first, stop,
+               n_channels, obs):  # fmt: skip
+    """:func:`lidar_agent` for agents ``first`` to ``stop - 1`` of every team of ``state``,
+    each seeing every agent: ``obs[:, first:stop, :n_channels]``."""
+    n_teams, n_rovers = state.cos_h.shape
+    candidates = np.arange(n_rovers)
     acc = np.zeros(n_channels)
     count = np.zeros(n_channels, dtype=np.int64)
     for e in range(n_teams):
         for i in range(first, stop):
-            c, s = cos_h[e, i], sin_h[e, i]
-            xi, yi = positions[e, i, 0], positions[e, i, 1]
-            acc[:] = 0.0
-            count[:] = 0
-            for j in range(n_rovers + poi_positions.shape[1]):  # rovers by index, then POIs
-                if j == i:
-                    continue
-                if j < n_rovers:
-                    dx, dy = positions[e, j, 0] - xi, positions[e, j, 1] - yi
-                    num, base, within = 1.0, agent_base[j], radius_sq
-                else:
-                    k = j - n_rovers
-                    if not visible[k] or (disappear[k] and state.captured[e, k]):
-                        continue
-                    dx, dy = poi_positions[e, k, 0] - xi, poi_positions[e, k, 1] - yi
-                    num, base = poi_values[e, k], poi_base
-                    within = min(radius_sq, poi_radius_sq[k])
-                dist_sq = dx * dx + dy * dy
-                if dist_sq > within:
-                    continue
-                if world:
-                    q = _world_sector(dx, dy, n_sectors)
-                else:
-                    q = sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
-                _add(acc, count, base + q, _term(num, dist_sq, d_min_sq, radius_sq, measure),
-                     compose)  # fmt: skip
-            for q in range(n_channels):
-                if count[q] == 0:
-                    obs[e, i, q] = empty
-                elif compose == 1:
-                    obs[e, i, q] = acc[q] / count[q]
-                else:
-                    obs[e, i, q] = acc[q]
+            lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, empty,
+                        world, agent_base, poi_base, visible, poi_radius_sq, disappear,
+                        n_channels, candidates, n_rovers, acc, count, obs)  # fmt: skip
 
 
-__all__ = ["BEARINGS", "CHANNELS", "COMPOSE", "MEASURES", "Lidar", "SensingView", "lidar"]
+__all__ = ["BEARINGS", "CHANNELS", "COMPOSE", "MEASURES", "Lidar", "SensingView", "lidar_agent",
+           "lidar_rows"]  # fmt: skip

@@ -7,10 +7,11 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
 - ``"D"``: the difference evaluation ``D_i = G(z) - G(z_-i)`` with the null counterfactual
   (rover i's whole trajectory removed), from the world's running records;
 - ``"G"``: the team score G for every rover of the team;
-- ``"D++"``: D with counterfactual partners (:func:`physrover.domain.scoring.d_plus_plus`),
-  which credits a rover that would have completed a coupling with partners;
-- ``"ID"``, ``"ID-step"``: IndirectDifference (:mod:`physrover.domain.influence`), which
-  credits an agent (a UAV) with the captures of the agents it was near.
+- ``"D++"``: D with counterfactual partners
+  (:func:`physrover.domain.scoring.difference.d_plus_plus`), which credits a rover that
+  would have completed a coupling with partners;
+- ``"ID"``, ``"ID-step"``: IndirectDifference (:mod:`physrover.domain.scoring.influence`),
+  which credits an agent (a UAV) with the captures of the agents it was near.
 
 A new signal is a :class:`Credit` subclass (a ``__call__(world) -> (E, R)``) and one
 :func:`register_credit` call, from any module; its name then works in TOML and
@@ -26,8 +27,8 @@ import numpy as np
 
 from physrover.config import check
 from physrover.core.registry import CREDITS
-from physrover.domain.influence import indirect_difference
-from physrover.domain.scoring import d_plus_plus
+from physrover.domain.scoring.difference import d_plus_plus
+from physrover.domain.scoring.influence import indirect_difference
 
 
 class Credit:
@@ -59,7 +60,7 @@ class TeamScore(Credit):
 
 
 class DPlusPlus(Credit):
-    """D++ (Rahmattalabi et al. 2016): :func:`physrover.domain.scoring.d_plus_plus`."""
+    """D++ (Rahmattalabi et al. 2016): :func:`physrover.domain.scoring.difference.d_plus_plus`."""
 
     def __call__(self, world) -> np.ndarray:
         return d_plus_plus(world.state, world.n_req)
@@ -73,7 +74,7 @@ class DPlusPlus(Credit):
 
 
 class IndirectDifference(Credit):
-    """IndirectDifference (:mod:`physrover.domain.influence`) over a ``timescale``:
+    """IndirectDifference (:mod:`physrover.domain.scoring.influence`) over a ``timescale``:
     "trajectory" (``ID``) or "step" (``ID-step``)."""
 
     def __init__(self, timescale: str):

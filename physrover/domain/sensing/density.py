@@ -1,9 +1,23 @@
-"""Compiled kernels of the density sensor, Eqs. 14-16 (:mod:`physrover.domain.sensors`): the
-sector of an object (:func:`quadrant`, :func:`sector`) and the sector densities of every
-rover of a team (:func:`sense_team`, or of every team, :func:`sense`).
+"""The paper's sensor (``[sensor] kind = "density"``): rover and POI densities by sector of
+bearing, Eqs. 14-16, and its compiled kernels.
 
-Each channel adds its terms object by object, rovers by index then POIs, in float64;
-an object a rover does not see adds nothing. The paper's sensor sees every object: it is
+With the default four sectors (quadrants) each rover senses an 8-vector (the order of the
+lab's rover-domain code):
+
+- components 0-3: ``s_rover,q = sum_{j in J_q} 1 / delta_ij^2`` over the *other* rovers j of
+  the team in quadrant q (Eq. 15);
+- components 4-7: ``s_poi,q = sum_{k in K_q} V_k / delta_ik^2`` over the POIs k in quadrant
+  q (Eq. 16);
+
+with ``delta = max(||p_i - p_j||, d_min)`` the bounded distance of Eq. 14 and the quadrants
+of :mod:`physrover.domain.sensing.sectors`. With ``sectors = n`` (the lab's
+``n_observation_sections``) the same sums run over n equal sectors of bearing, 2n
+observations, sector 0 starting dead behind and counting counter-clockwise; with a finite
+``radius`` an object farther than it (its true distance, before the d_min bound) is left
+out of every sum.
+
+Each channel adds its terms object by object, rovers by index then POIs, in float64; an
+object a rover does not see adds nothing. The paper's sensor sees every object: it is
 all-pairs by definition, vectorised over the observing rovers (:func:`_sense_quadrants`,
 R^2 distance terms a team). A sensor with a finite radius in a team of at least
 :data:`physrover.domain.broadphase.SENSOR_GRID_MIN_POINTS` rovers finds the pairs of
@@ -11,46 +25,65 @@ rovers within the radius from a uniform grid instead (:func:`_sense_local`): the
 terms, added in the grid's order, so its sums equal the all-pairs loop's to float64
 rounding. The paper's unbounded sensor costs R^2 distance terms a team whatever is done
 (about 0.9 ms a step for 1000 rovers on one core): give large teams a radius.
+
+Inside ``[[agents]]`` (or with POIs some agent may not sense) a class's density sensor is
+read by the classes' lidar kernel (:mod:`physrover.domain.sensing.classes`), whose density
+composition is this sensor bit for bit.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import ClassVar
 
 import numpy as np
 
-from physrover.core.compiled import jit
+from physrover.config import check
+from physrover.core.compiled import dims, jit
+from physrover.core.registry import SENSORS
 from physrover.domain.broadphase import SENSOR_GRID_MIN_POINTS, grid, stencil_runs
+from physrover.domain.sensing.sectors import quadrant, sector
+from physrover.domain.sensing.sensor import Sensor, register_sensor
 
 
-@jit
-def quadrant(forward: float, left: float) -> int:
-    """Quadrant of an offset (forward, left) in the rover's frame (the convention of
-    :mod:`physrover.domain.sensors`).
+@register_sensor
+@dataclasses.dataclass(frozen=True)
+class Density(Sensor):
+    """The paper's sensor: rover and POI densities by sector of bearing (Eqs. 14-16), four
+    quadrants by default (the lab's n_observation_sections), optionally blind beyond a radius
+    (zerbeln/RoverDomain's observation radius)."""
 
-    Branch-free (the quadrants of random objects defeat branch prediction): bit 1 is the
-    half (bearing in [0, pi), dead ahead and the rover's own spot included), bit 0 the
-    quadrant within it (behind in the upper half, dead left included; front in the lower
-    half, dead right included).
-    """
-    upper = np.int64((left > 0.0) | ((left == 0.0) & (forward >= 0.0)))
-    behind = np.int64((forward < 0.0) | ((forward == 0.0) & (left > 0.0)))
-    ahead = np.int64(forward >= 0.0)
-    low = (upper & behind) | ((1 - upper) & ahead)
-    return 2 * upper + low
+    kind: ClassVar[str] = "density"
+
+    sectors: int = 4
+    """Sectors of bearing: observations per rover are 2 x sectors (rovers, then POIs)."""
+    radius: float = math.inf
+    """Objects farther than this (world units) are not sensed; inf (default) sees all."""
+
+    def __post_init__(self) -> None:
+        self._coerce_fields()
+        self.check_at_least(1, "sectors")
+        check(self.radius > 0, "radius", f"must be > 0 (inf: no limit), got {self.radius}")
+
+    @property
+    def dim(self) -> int:
+        return 2 * self.sectors
+
+    def kernel_arguments(self, d_min: float) -> tuple:
+        """``(d_min^2, sectors, radius_sq)`` as :func:`sense_team` takes them (the sector
+        count as a size tuple, no radius as None)."""
+        radius_sq = self.radius * self.radius if math.isfinite(self.radius) else None
+        return d_min * d_min, dims(self.sectors), radius_sq
+
+    def observe(self, state, d_min: float, out: np.ndarray) -> None:
+        d_min_sq, sectors, radius_sq = self.kernel_arguments(d_min)
+        sense(state, d_min_sq, sectors, radius_sq, out)
 
 
-@jit
-def sector(forward: float, left: float, n_sectors: int) -> int:
-    """Sector (0 .. n - 1) of an offset (forward, left) in the rover's frame: n equal
-    sectors of bearing counter-clockwise from dead behind, a boundary bearing in the sector
-    that starts there. Four sectors: :func:`quadrant` (exact on the boundaries); otherwise
-    ``floor((atan2(left, forward) + pi) n / (2 pi))``, a bearing of pi (dead behind) in
-    sector 0."""
-    if n_sectors == 4:
-        return quadrant(forward, left)
-    q = np.int64(math.floor((math.atan2(left, forward) + math.pi) * n_sectors / (2 * math.pi)))
-    return q if q < n_sectors else 0
+# Run directories written while this sensor was named "quadrants" (before sector counts)
+# still load: the name is an alias of the density sensor with its default four sectors.
+SENSORS.register("quadrants", Density, alias=True)
 
 
 PAD = 16
@@ -256,11 +289,14 @@ def _sense_local(e, state, d_min_sq, n_sectors, radius_sq, obs):
 
 
 @jit
-def sense(state, d_min, sectors, radius_sq, obs):
+def sense(state, d_min_sq, sectors, radius_sq, obs):
     """The density sensor (Eqs. 14-16) of every rover of every team in ``len(sectors)``
     sectors (a tuple of zeros, :func:`physrover.core.compiled.dims`), blind beyond
-    ``sqrt(radius_sq)`` world units (None: sees everything): ``obs`` (E, R, 2 n_sectors)
-    float32, written."""
+    ``sqrt(radius_sq)`` world units (None: sees everything), ``d_min_sq`` the bound of Eq.
+    14 squared: ``obs`` (E, R, 2 n_sectors) float32, written."""
     scratch = sense_scratch(state.cos_h.shape[1], sectors)
     for e in range(state.cos_h.shape[0]):
-        sense_team(e, state, d_min * d_min, sectors, radius_sq, obs, scratch)
+        sense_team(e, state, d_min_sq, sectors, radius_sq, obs, scratch)
+
+
+__all__ = ["PAD", "Density", "sense", "sense_scratch", "sense_team"]

@@ -1,18 +1,15 @@
-"""Team score G (Eqs. 11-14) and difference evaluations D (Eq. 1), batched over teams.
+"""G from an episode's captures (Eq. 11) and the counterfactual credits read from them:
+D (Eq. 1) and D++.
 
-- Eq. 13: rover i is in range of POI k at step t when ``delta_ikt^2 <= d_cap^2``, with the
-  bounded distance ``delta = max(||p_i - p_k||, d_min)`` of Eq. 14.
-- Eq. 12: POI k is captured at step t when at least ``n_req`` rovers are in range of it.
-- Eq. 11: ``G = sum_k V_k max_t I_kt``: each POI counts once, whenever it was captured.
+- Eq. 11: ``G = sum_k V_k max_t I_kt``: each POI counts once, whenever it was captured;
 - Eq. 1 with the null counterfactual (paper Section 4.2): ``D_i = G(z) - G(z_-i)``, where
-  ``z_-i`` removes rover i's whole trajectory: a POI counts for ``G(z_-i)`` if at some step at
-  least ``n_req`` rovers *other than i* were in range of it.
+  ``z_-i`` removes rover i's whole trajectory: a POI counts for ``G(z_-i)`` if at some
+  scored step its coupling is met *without* rover i.
 
-Steps are scored after reset and after every environment step (``steps + 1`` times), by the
-compiled :func:`physrover.domain.kernels.score` into the scoring arrays of the world's
-:class:`~physrover.domain.state.WorldState`: D is tracked online, through
-``captured_without`` (O(E R K)); the per-step record ``in_range`` (O(T E R K) bools, 0.2 MB
-at paper scale) is what D++ replays.
+The compiled step (:func:`physrover.domain.scoring.captures.score_team`) keeps the captures
+with and without each rover in the world's :class:`~physrover.domain.state.WorldState`, so
+D is read off at any step (O(E R K)); the per-step record ``in_range`` (O(T E R K) bools,
+0.2 MB at paper scale) is what D++ replays.
 """
 
 from __future__ import annotations
@@ -29,17 +26,6 @@ def team_score(captured: np.ndarray, poi_values: np.ndarray) -> np.ndarray:
     if values.ndim == 2 and captured.ndim == 3:
         values = values[:, None, :]
     return (captured * values).sum(axis=-1)
-
-
-def start_episode(state) -> None:
-    """Forget every capture in ``state`` (a :class:`~physrover.domain.state.WorldState`):
-    the start of an episode, before step 0 is scored."""
-    state.poi_counts[:] = 0
-    state.in_range[:] = False
-    state.captured[:] = False
-    state.captured_without[:] = False
-    state.capture_step[:] = -1
-    state.score[:] = 0.0
 
 
 def difference(state) -> np.ndarray:

@@ -7,14 +7,17 @@ and sines, velocities) and nothing else. Built in:
 
 - ``ideal`` (:class:`Ideal`, the paper's kinematics, Section 4.1.2): the action (forward,
   left) in the rover's frame is the step's displacement, and the rover turns to face it.
-  It is compiled into the world's idealised step kernel (``fused``).
-- ``physics`` (:class:`physrover.domain.physics.PhysicsMotion`): rigid bodies with mass,
+  It brings its kernel (:mod:`physrover.domain.motion.ideal`), which the step moves the
+  rovers with (:mod:`physrover.domain.step`).
+- ``physics`` (:class:`physrover.domain.motion.physics.PhysicsMotion`): rigid bodies with mass,
   finite force and torque and optional collisions (stepped by pymunk, or in open space by
   the same arithmetic compiled), parameters in ``[physics]``.
 
 A new model is a subclass and one :func:`register_dynamics` call; its name then works as
 ``motion = "NAME"``. Actions reach :meth:`Dynamics.step` checked (no NaN) and clipped to
-[-1, 1], as float64.
+[-1, 1], as float64; the compiled step then senses, scores and records the state the model
+wrote (:mod:`physrover.domain.step`). Only the built-in :class:`Ideal` itself (not a
+subclass, which may override :meth:`~Dynamics.step`) is moved inside the compiled step.
 """
 
 from __future__ import annotations
@@ -24,8 +27,8 @@ from typing import ClassVar
 import numpy as np
 
 from physrover.core.registry import DYNAMICS
-from physrover.domain.kernels import Fused, heading_trig, move
-from physrover.domain.roles import Roles
+from physrover.domain.agents.roles import Roles
+from physrover.domain.motion.ideal import heading_trig, move_team
 
 
 class Dynamics:
@@ -33,8 +36,6 @@ class Dynamics:
 
     name: ClassVar[str] = ""
     """The name it is registered under (``motion = "NAME"``)."""
-    fused: ClassVar[bool] = False
-    """True only for the idealised model, which the world's step kernel moves itself."""
     obstacles: ClassVar[bool] = False
     """Whether the model makes rovers collide with the scenario's static obstacles; a
     scenario with obstacles under a model without them is a config error."""
@@ -62,8 +63,10 @@ def register_dynamics(cls: type[Dynamics], *, replace: bool = False) -> type[Dyn
 
 
 @register_dynamics
-class Ideal(Fused, Dynamics, fused=True):
-    """The paper's kinematics (:func:`physrover.domain.kernels.move`)."""
+class Ideal(Dynamics):
+    """The paper's kinematics (:func:`physrover.domain.motion.ideal.move_team`); the step
+    moves the rovers with its kernel, so :meth:`step` runs only when a subclass's world
+    calls it."""
 
     name: ClassVar[str] = "ideal"
 
@@ -72,4 +75,13 @@ class Ideal(Fused, Dynamics, fused=True):
         self.roles = Roles.build(config)  # agent classes' speeds, frames, gates, bounds
 
     def step(self, state, actions: np.ndarray) -> None:
-        move(actions, state, np.empty(actions.shape, dtype=np.float32), self.roles)
+        record = np.empty(actions.shape, dtype=np.float32)
+        free = np.ones(actions.shape[1], dtype=np.bool_)
+        for e in range(actions.shape[0]):
+            move_team(e, actions, state, record, True, self.roles, free)
+
+
+def compiled_motion(dynamics: Dynamics) -> bool:
+    """Whether the compiled step moves the rovers itself: the built-in idealised model, not a
+    subclass of it (module docstring)."""
+    return type(dynamics) is Ideal

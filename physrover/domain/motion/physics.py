@@ -11,7 +11,7 @@ rover is a dynamic ``pymunk.Body`` with a circle shape in one ``pymunk.Space``, 
 moves in and out of the space with ``pymunk.batch`` as arrays, never with a Python loop over
 rovers or teams. In open space (the default scenario) a pymunk step of bodies that have
 nothing to collide with is semi-implicit Euler and nothing else, so the same arithmetic
-runs compiled (:func:`physrover.domain.physics_kernels.integrate`, a whole environment step
+runs compiled (:func:`physrover.domain.motion.integrator.integrate`, a whole environment step
 in one call) and gives pymunk's trajectories to the last bit (tested against pymunk, with
 and without rover contacts, for equal and mixed bodies; pymunk's x86-64 wheels use no fused
 multiply-adds, which a build for another CPU might, changing last bits) in half the time:
@@ -46,14 +46,14 @@ The force and torque are applied as the velocity change they cause over the phys
 (``dv = F dt / m``, written into the velocity) *before* the physics step, at its first
 physics step: chipmunk integrates positions before velocities, so a force written to
 ``Body.force`` would move the body only one physics step later (later physics steps of the
-environment step apply it as a force; :func:`physrover.domain.physics_kernels.control`).
+environment step apply it as a force; :func:`physrover.domain.motion.integrator.control`).
 Applied this way, the integration is semi-implicit Euler and, in the limit of unbounded
 force with one substep, a physical rover follows the idealised trajectory exactly (tested).
 With finite force a rover needs several steps to reach full speed, and its speed never
 exceeds the command (the velocity moves along the segment towards ``v*``).
 
 Contacts are resolved by one compiled pass before every physics step
-(:func:`physrover.domain.contacts.speculative_contacts`), between the rovers of a
+(:func:`physrover.domain.motion.contacts.speculative_contacts`), between the rovers of a
 team (switched by ``collisions``) and between rovers and the static obstacles and walls:
 it removes the closing speed that would carry a pair into overlap within the step, shared
 between two rovers as momentum conservation shares it, all from a static obstacle's side:
@@ -95,12 +95,12 @@ import pymunk.batch as pb
 
 from physrover.config import DomainConfig
 from physrover.config.domain import extent_of
-from physrover.domain.dynamics import Dynamics, register_dynamics
-from physrover.domain.kernels import heading_trig
+from physrover.domain.agents.roles import Roles
+from physrover.domain.motion.dynamics import Dynamics, register_dynamics
+from physrover.domain.motion.ideal import heading_trig
+from physrover.domain.motion.integrator import advance_compiled, setpoints, substep, wrap_angles
+from physrover.domain.motion.separation import separate
 from physrover.domain.obstacles import box_corners
-from physrover.domain.physics_kernels import advance_compiled, setpoints, substep, wrap_angles
-from physrover.domain.roles import Roles, class_commands
-from physrover.domain.separation import separate
 
 _ROVER = 0b01
 _WALL = 0b10
@@ -355,10 +355,8 @@ class PhysicsMotion(Dynamics):
         cfg, dt = self.config, self.dt
         shape = (self.n_teams, self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
-        if self.roles is not None:
-            actions = class_commands(actions, state, self.roles)
-        setpoints(actions, state.rover_headings, state.cos_h, state.sin_h, self.max_speed,
-                  target_v, target_heading)  # fmt: skip
+        setpoints(actions, state.rover_positions, state.rover_headings, state.cos_h, state.sin_h,
+                  self.max_speed, self.roles, target_v, target_heading)  # fmt: skip
         if self.uses_pymunk:
             out = self._bodies()
             for k in range(cfg.physics.substeps):

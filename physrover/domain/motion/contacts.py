@@ -1,6 +1,6 @@
 """The physical model's one contact solver: speculative contacts between the rovers of a
 team and against static capsules, resolved before every physics step
-(:func:`speculative_contacts`, called by :func:`physrover.domain.physics_kernels.substep`).
+(:func:`speculative_contacts`, called by :func:`physrover.domain.motion.integrator.substep`).
 
 The pairs it visits come from the broad phase (:mod:`physrover.domain.broadphase`); the
 sweeps it may take grow with the team (:func:`contact_sweeps`).

@@ -2,7 +2,7 @@
 and which agent classes count, ``[[agents]]``).
 
 :class:`PoiRules` holds the rules of a domain's K POIs as arrays, with the one piece of
-episode state they need, and :func:`physrover.domain.kernels.score_team` takes it as its
+episode state they need, and :func:`physrover.domain.scoring.captures.score_team` takes it as its
 ``rules`` argument (None, the paper's POIs, compiles the rules away). With rules, POI k is
 captured at a scored step t (Eq. 12, generalised) iff
 
@@ -27,7 +27,8 @@ from typing import NamedTuple
 import numpy as np
 
 from physrover.config.pois import capture_radii
-from physrover.domain.roles import agent_classes, per_agent
+from physrover.domain.agents.classes import agent_classes, class_names, per_agent
+from physrover.domain.scoring.captures import last_scored_step
 
 
 class PoiRules(NamedTuple):
@@ -71,12 +72,12 @@ class PoiRules(NamedTuple):
         for i, p in enumerate(pois):
             after[i, list(p.after if p else ())] = True
         final = np.array([bool(p) and p.score_at == "final" for p in pois], dtype=bool)
-        t_final = config.steps if config.scored_states == "all" else config.steps - 1
+        t_final = last_scored_step(config)
         without = np.full((n_teams, config.n_rovers, k), -1, dtype=np.int64)
         classes = config.agents
         counted = per_agent(config, [c.captures for c in classes], True).astype(bool)
         agent_class = agent_classes(config)
-        names = [c.name for c in classes] or ["rover"]
+        names = class_names(config)
         require = np.zeros((k, len(names)), dtype=np.int64)
         for i, p in enumerate(pois):
             for name, n in (p.require if p else {}).items():

@@ -1,0 +1,84 @@
+"""Each agent's class and per-agent constants, from ``[[agents]]``.
+
+Agents are in team order, a class's agents contiguous and in ``[[agents]]`` order: class c
+owns the rows :func:`class_rows` gives of every (E, R, ...) array. Without ``[[agents]]``
+the team is one class of ``n_rovers`` rovers (the paper's).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def per_agent(config, per_class, default) -> np.ndarray:
+    """(R,): each agent's entry of ``per_class`` (one per ``[[agents]]`` class, agents
+    in team order), or ``default`` for every agent of the paper's one-class team."""
+    if not config.agents:
+        return np.full(config.n_rovers, default)
+    return np.repeat(np.asarray(per_class), [c.count for c in config.agents])
+
+
+def agent_classes(config) -> np.ndarray:
+    """(R,) int64: each agent's class index (0 for every agent without ``[[agents]]``)."""
+    return per_agent(config, np.arange(len(config.agents)), 0).astype(np.int64)
+
+
+def class_names(config) -> list[str]:
+    """The classes' names in ``[[agents]]`` order (``["rover"]`` for the paper's team: the
+    name ``[[pois]] visible_to`` and ``require`` use for it)."""
+    return [c.name for c in config.agents] or ["rover"]
+
+
+def class_rows(config) -> list[slice]:
+    """Each class's rows of the team's (R, ...) arrays, in ``[[agents]]`` order (the
+    implicit one class of the paper's rovers without them)."""
+    counts = [c.count for c in config.agents] or [config.n_rovers]
+    starts = np.cumsum([0, *counts])
+    return [slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:], strict=True)]
+
+
+def class_sensor(config, c: int):
+    """Class c's sensor: its own (``[[agents]] sensor``), else the domain's ``[sensor]``."""
+    agent = config.agents[c] if config.agents else None
+    return (agent.sensor if agent is not None else None) or config.sensor
+
+
+def gate_radius(agent_class, config) -> float:
+    """The class's ``moves_with_radius``, or its sensor's radius for 0 (the lab's rule)."""
+    if agent_class.moves_with_radius:
+        return agent_class.moves_with_radius
+    return float(getattr(agent_class.sensor or config.sensor, "radius", math.inf))
+
+
+def agent_names(config) -> list[str]:
+    """Each agent's name: ``CLASS_j``, j counted within its class (``rover_i`` for the
+    paper's team): the PettingZoo agents and TorchRL's group members."""
+    if not config.agents:
+        return [f"rover_{i}" for i in range(config.n_rovers)]
+    return [f"{c.name}_{j}" for c in config.agents for j in range(c.count)]
+
+
+def spawn(positions: np.ndarray, config, rngs) -> None:
+    """Move the start ``positions`` (E, R, 2) of the classes with a spawn rule
+    (``[[agents]] spawn``), team e's from ``rngs[e]``, drawn after the scenario's (so the
+    scenario's draws, and a "disc" class's start, are what they are without rules)."""
+    for rows, agent in zip(class_rows(config), config.agents, strict=False):
+        n = rows.stop - rows.start
+        for e, rng in enumerate(rngs):
+            if agent.spawn == "fixed":
+                positions[e, rows] = np.asarray(agent.spawn_positions, dtype=float)
+            elif agent.spawn == "box":
+                x0, x1, y0, y1 = agent.spawn_box
+                positions[e, rows, 0] = rng.uniform(x0, x1, n)
+                positions[e, rows, 1] = rng.uniform(y0, y1, n)
+            elif agent.spawn == "circle":
+                cx, cy, r = agent.spawn_circle
+                angle = rng.uniform(0.0, 2.0 * math.pi, n)
+                positions[e, rows, 0] = cx + r * np.cos(angle)
+                positions[e, rows, 1] = cy + r * np.sin(angle)
+
+
+__all__ = ["agent_classes", "agent_names", "class_names", "class_rows", "class_sensor",
+           "gate_radius", "per_agent", "spawn"]  # fmt: skip

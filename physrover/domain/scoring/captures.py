@@ -1,0 +1,142 @@
+"""Captures and the team score, compiled: Eqs. 11-13 and the counterfactual captures of D
+(Eq. 1), for the paper's POIs and under POI rules (:mod:`physrover.domain.scoring.rules`).
+
+- Eq. 13: agent i is in range of POI k at step t when ``||p_i - p_k||^2 <= d_cap^2``
+  (the bounded distance of Eq. 14, ``max(d, d_min) <= d_cap``, is the same since the config
+  keeps ``d_min <= d_cap`` and every capture radius ``>= d_min``);
+- Eq. 12: POI k is captured at step t when at least ``n_req`` agents are in range of it;
+- Eq. 11: ``G = sum_k V_k max_t I_kt``: each POI counts once, whenever it was captured;
+- Eq. 1's null counterfactual: the same captures without agent i (``captured_without``),
+  tracked online, so D costs O(E R K) a step.
+
+Which steps are scored is :func:`last_scored_step`'s rule: after reset and after every step
+(``steps + 1`` states), or all but the last (``scored_states = "before-steps"``).
+
+:func:`score_team` writes ``state``'s scoring arrays for one team; the compiled step
+(:mod:`physrover.domain.step`) calls it after sensing, and the tests compare it with plain
+loops (``tests/oracles.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from physrover.core.compiled import jit, jit_inline
+
+
+def last_scored_step(config) -> int:
+    """The last step whose state counts for captures (``[domain] scored_states``): ``steps``
+    (every state after reset and after each step), or ``steps - 1`` ("before-steps")."""
+    return config.steps if config.scored_states == "all" else config.steps - 1
+
+
+@jit
+def score_team(e, state, d_cap_sq, n_req, t, rules=None):
+    """Score step ``t`` of team ``e`` (Eqs. 11-13 and D's counterfactual captures) in
+    ``state``'s scoring arrays; ``n_req`` (K,) int64 is each POI's coupling; ``rules`` a
+    :class:`~physrover.domain.scoring.rules.PoiRules` or None (the paper's POIs: the rules'
+    branches are compiled away)."""
+    positions, poi_positions = state.rover_positions, state.poi_positions
+    n_rovers = positions.shape[1]
+    n_pois = poi_positions.shape[1]
+    count = state.poi_counts[e]
+    near = state.in_range[t, e]
+    captured, captured_without = state.captured, state.captured_without
+    for k in range(n_pois):
+        radius_sq = d_cap_sq
+        if rules is not None:
+            radius_sq = rules.capture_radius_sq[k]
+        px = poi_positions[e, k, 0]
+        py = poi_positions[e, k, 1]
+        n = 0
+        for i in range(n_rovers):
+            dx = px - positions[e, i, 0]
+            dy = py - positions[e, i, 1]
+            inside = dx * dx + dy * dy <= radius_sq  # Eq. 13
+            if rules is not None:
+                inside = inside and rules.counts_for[k, i]
+            near[i, k] = inside
+            n += np.int64(inside)
+        count[k] = n
+    total = 0.0
+    for k in range(n_pois):
+        if rules is not None:
+            score_rules(e, k, near, state, rules, n_req, t)
+        else:
+            if count[k] >= n_req[k]:  # Eq. 12
+                if not captured[e, k]:
+                    state.capture_step[e, k] = t
+                    captured[e, k] = True
+            for i in range(n_rovers):  # Eq. 12 without rover i
+                if count[k] - np.int64(near[i, k]) >= n_req[k]:
+                    captured_without[e, i, k] = True
+        if captured[e, k]:  # Eq. 11
+            total += state.poi_values[e, k]
+    state.score[e] = total
+
+
+@jit_inline
+def predecessors_before(after, k, first_steps, t):
+    """Whether every POI j with ``after[k, j]`` was first captured (``first_steps[j]``, -1:
+    never) at a step before ``t``."""
+    for j in range(after.shape[1]):
+        if after[k, j] and (first_steps[j] < 0 or first_steps[j] >= t):
+            return False
+    return True
+
+
+@jit_inline
+def score_rules(e, k, near, state, rules, n_req, t):
+    """Eq. 12 for POI k of team e at step t under ``rules`` (:mod:`physrover.domain.scoring.rules`),
+    for the team and for each counterfactual without rover i; the counts are this step's.
+
+    Leaving an agent out never raises a count, so no counterfactual meets a coupling that the
+    team misses, and leaving out an agent not in range changes nothing: the coupling is
+    counted again only without each agent in range (O(R) a POI, not O(R^2)). ``near`` is
+    ``state.in_range[t, e]``, the team's view, passed in rather than made again per POI."""
+    if rules.final_only[k] and t != rules.t_final:
+        return
+    if not coupling_met(k, near, rules, n_req, -1):
+        return
+    if not state.captured[e, k] and predecessors_before(rules.after, k, state.capture_step[e], t):
+        state.capture_step[e, k] = t
+        state.captured[e, k] = True
+    for i in range(near.shape[0]):
+        if state.captured_without[e, i, k]:
+            continue
+        if near[i, k] and not coupling_met(k, near, rules, n_req, i):
+            continue
+        if predecessors_before(rules.after, k, rules.step_without[e, i], t):
+            state.captured_without[e, i, k] = True
+            rules.step_without[e, i, k] = t
+
+
+@jit_inline
+def coupling_met(k, near, rules, n_req, without):
+    """Eq. 12 for POI k from one step's in-range agents ``near`` (R, K) bool, agent
+    ``without`` left out (-1: none): ``n_req[k]`` of them, or for a typed POI
+    (``require``) at least ``require[k, c]`` of each class c."""
+    typed = rules.typed[k]
+    for c in range(rules.require.shape[1] if typed else 1):
+        need = rules.require[k, c] if typed else n_req[k]
+        n = 0
+        for i in range(near.shape[0]):
+            if i != without and near[i, k] and (not typed or rules.agent_class[i] == c):
+                n += 1
+        if n < need:
+            return False
+    return True
+
+
+@jit
+def score(state, d_cap, n_req, t, rules=None):
+    """Score step ``t`` (0 after reset, then 1, 2, ...) of every team in ``state``: the POIs'
+    rover counts and which rovers are in range (``in_range[t]``), captures (Eqs. 12-13)
+    under each POI's coupling ``n_req`` (K,) int64, G so far (Eq. 11) and the captures
+    without each rover (the counterfactual of D, Eq. 1); ``rules``: :func:`score_team`'s."""
+    for e in range(state.cos_h.shape[0]):
+        score_team(e, state, d_cap * d_cap, n_req, t, rules)
+
+
+__all__ = ["coupling_met", "last_scored_step", "predecessors_before", "score", "score_rules",
+           "score_team"]  # fmt: skip

@@ -1,0 +1,225 @@
+"""What each agent class senses, as one table the compiled step reads.
+
+A team senses through one of two compiled paths (:mod:`physrover.domain.plan` picks):
+
+- the paper's density sensor for every rover (:func:`physrover.domain.sensing.density.sense_team`,
+  vectorised), when there are no ``[[agents]]``, no POI hides and the sensor is the built-in
+  :class:`~physrover.domain.sensing.density.Density`;
+- otherwise :class:`ClassSensing`, a table with a row per class (in ``[[agents]]`` order;
+  one row for the paper's team) of the lidar parameters and the class's
+  :class:`~physrover.domain.sensing.lidar.SensingView`, which :func:`sense_classes` reads.
+  A class's built-in lidar is its own row; a class's built-in density sensor is the lidar
+  with ``compose = "density"``, the inverse-square measure, heading bearing and ``empty =
+  0``, which is that sensor bit for bit (its all-pairs sums).
+
+A class whose sensor is neither built-in (a user's sensor, or a subclass of a built-in) is
+left out of the table (``compiled`` False) and observed from Python after the step.
+
+Each agent's observations fill its class's first ``n_channels[c]`` columns and the rest of
+the world's (widest class's) row is 0.
+
+Large teams: a class with a finite radius in a team of at least
+:data:`LIDAR_GRID_MIN_POINTS` agents finds the agents within its radius from the cell list
+of :func:`physrover.domain.broadphase.grid` (cells of the smallest such radius), and takes
+them in index order (sorted by insertion: a few each), so its readings are the all-pairs
+readings bit for bit; a class whose radius spans more than :data:`MAX_STENCIL` cells each
+way (a UAV that sees the whole map) keeps the all-pairs loop.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from physrover.core.compiled import jit
+from physrover.domain.agents.classes import class_rows, class_sensor
+from physrover.domain.broadphase import grid
+from physrover.domain.sensing.density import Density
+from physrover.domain.sensing.lidar import COMPOSE, MEASURES, Lidar, SensingView, lidar_agent
+from physrover.domain.sensing.sensor import sensor_size
+
+LIDAR_GRID_MIN_POINTS = 64
+"""Teams of at least this many agents find a finite-radius class's neighbours from a grid."""
+
+MAX_STENCIL = 4
+"""A class senses from the grid only if its radius spans at most this many cells each way."""
+
+
+class ClassSensing(NamedTuple):
+    """The sensing table of C classes of R agents and K POIs (module docstring); arrays
+    indexed by class first."""
+
+    d_min_sq: float
+    """The bound of Eq. 14, squared (world units^2)."""
+    first: np.ndarray
+    """(C,) int64: the class's first agent."""
+    stop: np.ndarray
+    """(C,) int64: one past its last agent."""
+    compiled: np.ndarray
+    """(C,) bool: the table senses for this class (else Python does)."""
+    n_sectors: np.ndarray
+    """(C,) int64: sectors of bearing."""
+    radius_sq: np.ndarray
+    """(C,) float64: the sensing radius squared (inf: none)."""
+    compose: np.ndarray
+    """(C,) int64: index into :data:`~physrover.domain.sensing.lidar.COMPOSE`."""
+    measure: np.ndarray
+    """(C,) int64: index into :data:`~physrover.domain.sensing.lidar.MEASURES`."""
+    empty: np.ndarray
+    """(C,) float64: the reading of a sector with nothing in it."""
+    world: np.ndarray
+    """(C,) bool: sectors fixed in the world frame."""
+    agent_base: np.ndarray
+    """(C, R) int64: the first channel of agent j's terms, as class c sees it."""
+    poi_base: np.ndarray
+    """(C,) int64: the first channel of the POIs' terms."""
+    visible: np.ndarray
+    """(C, K) bool: the POIs class c senses at all."""
+    poi_radius_sq: np.ndarray
+    """(C, K) float64: within what squared distance."""
+    disappear: np.ndarray
+    """(C, K) bool: which vanish once captured."""
+    n_channels: np.ndarray
+    """(C,) int64: the class's observation size."""
+    local: np.ndarray
+    """(C,) bool: the class finds its neighbours from the grid."""
+    cell: float
+    """The grid's cell side (world units): the smallest radius of a local class; 0: none."""
+    max_channels: int
+    """The largest ``n_channels``."""
+
+    @classmethod
+    def build(cls, config) -> ClassSensing:
+        """The table of ``config`` (a :class:`~physrover.config.DomainConfig`)."""
+        rows = class_rows(config)
+        n, k = config.n_rovers, config.n_pois
+        table = {name: [] for name in cls._fields if name not in ("d_min_sq", "cell",
+                                                                   "max_channels")}  # fmt: skip
+        for c, row in enumerate(rows):
+            sensor = class_sensor(config, c)
+            kind = type(sensor)
+            if kind is Lidar:
+                view = sensor.view(config, c)
+                lidar = sensor
+            else:  # the density sensor as a lidar (module docstring), or a Python sensor
+                lidar = Lidar(sectors=getattr(sensor, "sectors", 4),
+                              radius=getattr(sensor, "radius", math.inf))  # fmt: skip
+                view = SensingView.everything(n, k, lidar.sectors)
+            radius_sq = lidar.radius**2 if math.isfinite(lidar.radius) else math.inf
+            values = {
+                "first": row.start, "stop": row.stop, "compiled": kind in (Lidar, Density),
+                "n_sectors": lidar.sectors, "radius_sq": radius_sq,
+                "compose": COMPOSE.index(lidar.compose), "measure": MEASURES.index(lidar.measure),
+                "empty": lidar.empty, "world": lidar.bearing == "world",
+                "agent_base": view.agent_base, "poi_base": view.poi_base,
+                "visible": view.visible, "poi_radius_sq": view.poi_radius_sq,
+                "disappear": view.disappear, "n_channels": sensor_size(sensor, config),
+                "local": n >= LIDAR_GRID_MIN_POINTS and math.isfinite(lidar.radius),
+            }  # fmt: skip
+            for name, value in values.items():
+                table[name].append(value)
+        radii = [math.sqrt(r) for r, local in zip(table["radius_sq"], table["local"],
+                                                   strict=True) if local]  # fmt: skip
+        cell = min(radii, default=0.0)
+        table["local"] = [
+            local and math.sqrt(r) <= MAX_STENCIL * cell
+            for r, local in zip(table["radius_sq"], table["local"], strict=True)
+        ]
+        if not any(table["local"]):
+            cell = 0.0
+        dtypes = {
+            "compiled": bool,
+            "world": bool,
+            "visible": bool,
+            "disappear": bool,
+            "local": bool,
+            "radius_sq": float,
+            "empty": float,
+            "poi_radius_sq": float,
+        }
+        arrays = {name: np.array(v, dtype=dtypes.get(name, np.int64)) for name, v in table.items()}
+        return cls(
+            d_min_sq=float(config.d_min) ** 2,
+            cell=float(cell),
+            max_channels=int(max(table["n_channels"])),
+            **arrays,
+        )
+
+
+class SensingScratch(NamedTuple):
+    """Per-call scratch of :func:`sense_classes` (:func:`sensing_scratch`)."""
+
+    acc: np.ndarray
+    count: np.ndarray
+    everyone: np.ndarray
+    near: np.ndarray
+
+
+@jit
+def sensing_scratch(sensing, n_agents):
+    """Scratch of :func:`sense_classes` for teams of ``n_agents``."""
+    return SensingScratch(np.zeros(sensing.max_channels), np.zeros(sensing.max_channels,
+                          np.int64), np.arange(n_agents), np.empty(n_agents, np.int64))  # fmt: skip
+
+
+@jit
+def _near(i, cells, nx, ny, starts, members, reach, out):
+    """The agents in the (2 reach + 1)^2 cells around agent i's cell, ascending, in
+    ``out``; returns how many (none for an agent in no cell)."""
+    cx, cy = cells[i, 0], cells[i, 1]
+    n = 0
+    if cx < 0:
+        return n
+    for x in range(max(cx - reach, 0), min(cx + reach, nx - 1) + 1):
+        lo = x * ny + max(cy - reach, 0)
+        hi = x * ny + min(cy + reach, ny - 1) + 1
+        for slot in range(starts[lo], starts[hi]):
+            j, at = members[slot], n
+            while at > 0 and out[at - 1] > j:  # insertion: the few near, in index order
+                out[at] = out[at - 1]
+                at -= 1
+            out[at] = j
+            n += 1
+    return n
+
+
+@jit
+def sense_classes(e, state, sensing, obs, scratch):
+    """Every compiled class's readings for team ``e`` (:func:`lidar_agent`, the module
+    docstring) into ``obs[e]`` (R, >= max_channels) float32, each row's columns past its
+    class's size set to 0."""
+    acc, count, everyone, near = scratch
+    n_agents, width = state.cos_h.shape[1], obs.shape[2]
+    cells = np.empty((0, 2), np.int64)
+    starts = members = np.empty(0, np.int64)
+    nx = ny = np.int64(0)
+    if sensing.cell > 0.0:
+        cells, nx, ny, starts, members, _ = grid(state.rover_positions[e], sensing.cell)
+    for c in range(sensing.first.shape[0]):
+        if not sensing.compiled[c]:
+            continue
+        reach = (
+            np.int64(math.ceil(math.sqrt(sensing.radius_sq[c]) / sensing.cell))
+            if sensing.local[c]
+            else np.int64(0)
+        )
+        for i in range(sensing.first[c], sensing.stop[c]):
+            if sensing.local[c]:
+                n_near = _near(i, cells, nx, ny, starts, members, reach, near)
+                candidates = near
+            else:
+                n_near, candidates = n_agents, everyone
+            lidar_agent(e, i, state, sensing.d_min_sq, sensing.n_sectors[c],
+                        sensing.radius_sq[c], sensing.compose[c], sensing.measure[c],
+                        sensing.empty[c], sensing.world[c], sensing.agent_base[c],
+                        sensing.poi_base[c], sensing.visible[c], sensing.poi_radius_sq[c],
+                        sensing.disappear[c], sensing.n_channels[c], candidates, n_near, acc,
+                        count, obs)  # fmt: skip
+            for q in range(sensing.n_channels[c], width):
+                obs[e, i, q] = 0.0
+
+
+__all__ = ["LIDAR_GRID_MIN_POINTS", "MAX_STENCIL", "ClassSensing", "SensingScratch",
+           "sense_classes", "sensing_scratch"]  # fmt: skip

@@ -1,0 +1,125 @@
+"""The step, composed once: check and clip, move, sense, score, record.
+
+:func:`step_team` is the one composition of a team's step from the parts a world's plan
+(:class:`~physrover.domain.plan.StepPlan`) names. Everything that steps the domain calls it:
+
+- :meth:`RoverWorld.step <physrover.domain.world.RoverWorld.step>`, through
+  :func:`step_teams` (every team, one compiled call a step);
+- a learner's whole compiled episode (:mod:`physrover.learn.rollout`), once a step after
+  its policies chose the commands;
+- a motion model stepped before the kernel (the physical model, a user's): the world
+  checks and clips the commands (:func:`~physrover.domain.motion.ideal.clip_teams`), the
+  model moves the bodies, and :func:`step_teams` senses, scores and records (its plan has
+  no ``motion``).
+
+A team's step t (from state t - 1 to state t), in this order:
+
+1. the commands (R, 2) are clipped to [-1, 1] and recorded, and the agents move
+   (:func:`~physrover.domain.motion.ideal.move_team`; the classes' gates are judged from
+   the positions before anyone moves);
+2. every agent senses the new state (the paper's density sensor, or each class's lidar);
+3. if state t is scored (t <= ``t_final``), captures, G and D's counterfactuals
+   (:func:`~physrover.domain.scoring.captures.score_team`, under the POIs' rules);
+4. the new positions and headings are recorded.
+
+A NaN command is refused before anything moves (:func:`step_teams` returns False, the
+world unchanged).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from physrover.core.compiled import jit
+from physrover.domain.motion.ideal import all_commands_ok, move_team
+from physrover.domain.scoring.captures import score_team
+from physrover.domain.sensing.classes import sense_classes, sensing_scratch
+from physrover.domain.sensing.density import sense_scratch, sense_team
+from physrover.domain.state import WorldState
+
+
+class StepScratch(NamedTuple):
+    """Scratch of :func:`step_team`, made once a call of the kernels that loop over it."""
+
+    free: np.ndarray
+    """(R,) bool: the classes' gates."""
+    density: np.ndarray
+    """The density sensor's (:func:`~physrover.domain.sensing.density.sense_scratch`)."""
+    classes: object
+    """The classes' sensing's (:func:`~physrover.domain.sensing.classes.sensing_scratch`)."""
+
+
+@jit
+def _density_scratch(density, n_agents):
+    if density is not None:
+        return sense_scratch(n_agents, density[1])
+    return np.zeros((1, 1))
+
+
+@jit
+def _classes_scratch(classes, n_agents):
+    if classes is not None:
+        return sensing_scratch(classes, n_agents)
+    return None
+
+
+@jit
+def step_scratch(plan, n_agents):
+    """A :class:`StepScratch` for teams of ``n_agents`` under ``plan``."""
+    return StepScratch(np.ones(n_agents, np.bool_), _density_scratch(plan.density, n_agents),
+                       _classes_scratch(plan.classes, n_agents))  # fmt: skip
+
+
+@jit
+def _move(e, commands, state, actions, headings, motion, free):
+    if motion is not None:
+        move_team(e, commands, state, actions, headings, motion.roles, free)
+
+
+@jit
+def _sense(e, state, obs, density, classes, scratch):
+    if density is not None:
+        sense_team(e, state, density[0], density[1], density[2], obs, scratch.density)
+    if classes is not None:
+        sense_classes(e, state, classes, obs, scratch.classes)
+
+
+@jit
+def step_team(e, t, commands, plan, state, actions, obs, positions, headings, with_headings,
+              scratch):  # fmt: skip
+    """Step t of team ``e`` (module docstring) under ``plan``, a
+    :class:`~physrover.domain.plan.StepPlan`: ``commands`` (E, R, 2) as the policies gave
+    them, checked by the caller; written: ``actions`` (E, R, 2) float32 the clipped
+    commands (unless the plan has no motion), ``obs`` (E, R, n_obs) float32 the new
+    observations, ``positions`` (E, R, 2) and ``headings`` (E, R) copies of the new state
+    (the headings NaN unless ``with_headings``: nothing under idealised motion reads them,
+    :func:`~physrover.domain.motion.ideal.ideal_move`); ``scratch`` a
+    :class:`StepScratch`."""
+    _move(e, commands, state, actions, with_headings, plan.motion, scratch.free)
+    _sense(e, state, obs, plan.density, plan.classes, scratch)
+    if t <= plan.t_final:
+        score_team(e, state, plan.d_cap_sq, plan.n_req, t, plan.rules)
+    for i in range(state.rover_positions.shape[1]):
+        positions[e, i, 0] = state.rover_positions[e, i, 0]
+        positions[e, i, 1] = state.rover_positions[e, i, 1]
+        headings[e, i] = state.rover_headings[e, i]
+
+
+@jit
+def step_teams(commands, t, plan, actions, obs, positions, headings, *state):
+    """Step t of every team (:func:`step_team`, team by team while its data is in cache);
+    ``*state`` the world's :class:`~physrover.domain.state.WorldState`, arrays one by one
+    (numba types plain arrays at the call in C, a tuple in Python: 2 us a step). Returns
+    False, having changed nothing, if a command is NaN."""
+    if not all_commands_ok(commands):
+        return False
+    st = WorldState(*state)
+    scratch = step_scratch(plan, st.cos_h.shape[1])
+    for e in range(st.cos_h.shape[0]):
+        step_team(e, t, commands, plan, st, actions, obs, positions, headings, True, scratch)
+    return True
+
+
+__all__ = ["StepScratch", "step_scratch", "step_team", "step_teams"]
