@@ -354,3 +354,26 @@ def test_one_class_of_the_paper_rovers_is_the_paper_team_under_physics():
     a, b = worlds
     np.testing.assert_array_equal(a.position_history, b.position_history)
     np.testing.assert_array_equal(a.observations, b.observations)
+
+
+def test_a_class_that_never_captures_is_a_mask_equal_to_the_rules_path():
+    """UAVs that never capture and the paper's POIs: the plan scores with the paper's
+    kernel and a ``counted`` mask; the POI rules' kernel (``counts_for``) gives the same
+    episode bit for bit."""
+    import dataclasses
+
+    from physrover.domain.scoring.rules import PoiRules
+
+    domain = DomainConfig.from_toml(ROVERS_AND_UAVS).replace(n_req=2, poi_ring_radius=4.0)
+    worlds = [RoverWorld(domain, 3) for _ in range(2)]
+    step = worlds[0].plan.step
+    assert step.rules is None and step.counted.tolist() == [True] * 4 + [False] * 2
+    ruled = step._replace(rules=PoiRules.build(domain, 3, always=True), counted=None)
+    worlds[1].plan = dataclasses.replace(worlds[1].plan, step=ruled)
+    actions = np.random.default_rng(5).uniform(-1.2, 1.2, (domain.steps, 3, 6, 2))
+    play_alike(worlds, actions)
+    a, b = worlds
+    assert a.G.max() > 0  # couplings met, so both paths' captures are exercised
+    np.testing.assert_array_equal(a.state.in_range, b.state.in_range)
+    np.testing.assert_array_equal(a.G, b.G)
+    np.testing.assert_array_equal(a.D, b.D)

@@ -37,7 +37,14 @@ def _episode(paths, pois=((0.0, 0.0),), values=(2.0,)):
     for t, positions in enumerate(paths[1:], start=1):
         world.state.rover_positions[0] = positions
         world.position_history[t, 0] = positions
-        score(world.state, domain.d_cap, world.n_req, t, world.plan.step.rules)
+        score(
+            world.state,
+            domain.d_cap,
+            world.n_req,
+            t,
+            world.plan.step.rules,
+            world.plan.step.counted,
+        )
     return world
 
 

@@ -92,7 +92,14 @@ def _scored(pois, paths, poi_positions, n_rovers=None, steps=4, **domain):
         poi_positions=poi_positions))  # fmt: skip
     for t, positions in enumerate(paths[1:], start=1):
         world.state.rover_positions[0] = positions
-        score(world.state, config.d_cap, world.n_req, t, world.plan.step.rules)
+        score(
+            world.state,
+            config.d_cap,
+            world.n_req,
+            t,
+            world.plan.step.rules,
+            world.plan.step.counted,
+        )
     return world
 
 
@@ -284,7 +291,14 @@ def test_a_typed_poi_needs_each_class_it_names():
             poi_positions=np.asarray(pois)))  # fmt: skip
         for t, positions in enumerate(paths[1:], start=1):
             world.state.rover_positions[0] = positions
-            score(world.state, domain.d_cap, world.n_req, t, world.plan.step.rules)
+            score(
+                world.state,
+                domain.d_cap,
+                world.n_req,
+                t,
+                world.plan.step.rules,
+                world.plan.step.counted,
+            )
         return world
 
     # two rovers but no UAV, then the UAV alone: never both classes at one step

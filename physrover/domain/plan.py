@@ -19,7 +19,8 @@ Parts and their kernels:
 - ``classes``: otherwise, what each class senses
   (:class:`~physrover.domain.sensing.classes.ClassSensing`);
 - ``rules``: the POIs' rules (:class:`~physrover.domain.scoring.rules.PoiRules`), None
-  where every POI and class scores as the paper's;
+  where every POI scores as the paper's; then ``counted`` (R,) bool marks the agents that
+  count toward couplings where a class does not capture (None: every agent counts);
 - the coupling ``n_req`` (K,), ``d_cap^2`` and the last scored step ``t_final``.
 
 What has no kernel (a user's sensor, a subclass of a built-in part that may override its
@@ -34,7 +35,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from physrover.domain.agents.classes import class_rows, class_sensor
+from physrover.domain.agents.classes import class_rows, class_sensor, per_agent
 from physrover.domain.agents.roles import Roles
 from physrover.domain.motion.dynamics import compiled_motion
 from physrover.domain.scoring.captures import last_scored_step
@@ -62,6 +63,8 @@ class StepPlan(NamedTuple):
     """:class:`~physrover.domain.sensing.classes.ClassSensing`, or None."""
     rules: Any
     """:class:`~physrover.domain.scoring.rules.PoiRules`, or None (the paper's POIs)."""
+    counted: Any
+    """(R,) bool: without rules, the agents that count toward couplings; None: all."""
     n_req: np.ndarray
     """(K,) int64: each POI's coupling."""
     d_cap_sq: float
@@ -89,11 +92,10 @@ class Plan:
 
 
 def _rules_needed(config) -> bool:
-    """Whether any POI or class scores differently from the paper's (else the rules are
-    compiled away: the paper's scoring is the rules' with every rule at its default)."""
+    """Whether any POI scores differently from the paper's (else the rules are compiled
+    away: the paper's scoring is the rules' with every rule at its default, and a class
+    that does not capture is the ``counted`` mask)."""
     if any(p.after or p.score_at != "any" or p.require for p in config.pois):
-        return True
-    if any(not c.captures for c in config.agents):
         return True
     radii = {p.capture_radius for p in config.pois}
     return bool(radii - {0.0, config.d_cap})
@@ -122,7 +124,9 @@ def build_plan(config, dynamics, n_teams: int) -> Plan:
     sizes = [sensor_size(class_sensor(config, c), config)
              for c in range(len(class_rows(config)))]  # fmt: skip
     rules = PoiRules.build(config, n_teams, always=True) if _rules_needed(config) else None
-    step = StepPlan(motion, density, classes, rules,
+    counted = per_agent(config, [c.captures for c in config.agents], True).astype(bool)
+    counted = None if rules is not None or counted.all() else counted
+    step = StepPlan(motion, density, classes, rules, counted,
                     np.array(config.n_req_per_poi, dtype=np.int64), float(config.d_cap) ** 2,
                     int(last_scored_step(config)))  # fmt: skip
     return Plan(step, int(max(sizes)), tuple(python_sensors), motion is None)

@@ -100,7 +100,7 @@ def step_team(e, t, commands, plan, state, actions, obs, positions, headings, wi
     _move(e, commands, state, actions, with_headings, plan.motion, scratch.free)
     _sense(e, state, obs, plan.density, plan.classes, scratch)
     if t <= plan.t_final:
-        score_team(e, state, plan.d_cap_sq, plan.n_req, t, plan.rules)
+        score_team(e, state, plan.d_cap_sq, plan.n_req, t, plan.rules, plan.counted)
     for i in range(state.rover_positions.shape[1]):
         positions[e, i, 0] = state.rover_positions[e, i, 0]
         positions[e, i, 1] = state.rover_positions[e, i, 1]

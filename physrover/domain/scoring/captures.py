@@ -31,11 +31,13 @@ def last_scored_step(config) -> int:
 
 
 @jit
-def score_team(e, state, d_cap_sq, n_req, t, rules=None):
+def score_team(e, state, d_cap_sq, n_req, t, rules=None, counted=None):
     """Score step ``t`` of team ``e`` (Eqs. 11-13 and D's counterfactual captures) in
     ``state``'s scoring arrays; ``n_req`` (K,) int64 is each POI's coupling; ``rules`` a
     :class:`~physrover.domain.scoring.rules.PoiRules` or None (the paper's POIs: the rules'
-    branches are compiled away)."""
+    branches are compiled away). Without rules, ``counted`` (R,) bool, if given, are the
+    agents that count toward couplings (the others are never in range: a class that does
+    not capture); with rules, their ``counts_for`` says it."""
     positions, poi_positions = state.rover_positions, state.poi_positions
     n_rovers = positions.shape[1]
     n_pois = poi_positions.shape[1]
@@ -55,6 +57,8 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None):
             inside = dx * dx + dy * dy <= radius_sq  # Eq. 13
             if rules is not None:
                 inside = inside and rules.counts_for[k, i]
+            elif counted is not None:
+                inside = inside and counted[i]
             near[i, k] = inside
             n += np.int64(inside)
         count[k] = n
@@ -129,13 +133,14 @@ def coupling_met(k, near, rules, n_req, without):
 
 
 @jit
-def score(state, d_cap, n_req, t, rules=None):
+def score(state, d_cap, n_req, t, rules=None, counted=None):
     """Score step ``t`` (0 after reset, then 1, 2, ...) of every team in ``state``: the POIs'
-    rover counts and which rovers are in range (``in_range[t]``), captures (Eqs. 12-13)
+    agent counts and which agents are in range (``in_range[t]``), captures (Eqs. 12-13)
     under each POI's coupling ``n_req`` (K,) int64, G so far (Eq. 11) and the captures
-    without each rover (the counterfactual of D, Eq. 1); ``rules``: :func:`score_team`'s."""
+    without each agent (the counterfactual of D, Eq. 1); ``rules``, ``counted``:
+    :func:`score_team`'s."""
     for e in range(state.cos_h.shape[0]):
-        score_team(e, state, d_cap * d_cap, n_req, t, rules)
+        score_team(e, state, d_cap * d_cap, n_req, t, rules, counted)
 
 
 __all__ = ["coupling_met", "last_scored_step", "predecessors_before", "score", "score_rules",

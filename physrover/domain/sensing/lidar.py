@@ -176,6 +176,21 @@ class SensingView(NamedTuple):
 
 
 @jit_inline
+def _add(acc, count, q, num, dist_sq, d_min_sq, radius_sq, measure, compose):
+    """An object's term (``measure``: Eq. 14's inverse square, or linear) composed into
+    channel q (a sum, or the largest term under "closest")."""
+    if measure == 0:
+        term = num / max(dist_sq, d_min_sq)  # Eq. 14
+    else:
+        term = num * (1.0 - math.sqrt(dist_sq) / math.sqrt(radius_sq))
+    if compose == 2:
+        acc[q] = max(acc[q], term) if count[q] > 0 else term
+    else:
+        acc[q] += term
+    count[q] += 1
+
+
+@jit_inline
 def lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world,
                 agent_base, poi_base, visible, poi_radius_sq, disappear, n_channels,
                 candidates, n_candidates, acc, count, obs):  # fmt: skip
@@ -192,37 +207,29 @@ def lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, e
     for q in range(n_channels):
         acc[q] = 0.0
         count[q] = 0
-    n_rovers = n_candidates
-    for m in range(n_candidates + poi_positions.shape[1]):  # agents by index, then POIs
-        if m < n_rovers:
-            j = candidates[m]
-            if j == i:
-                continue
-            dx, dy = positions[e, j, 0] - xi, positions[e, j, 1] - yi
-            num, base, within = 1.0, agent_base[j], radius_sq
-        else:
-            k = m - n_rovers
-            if not visible[k] or (disappear[k] and state.captured[e, k]):
-                continue
-            dx, dy = poi_positions[e, k, 0] - xi, poi_positions[e, k, 1] - yi
-            num, base = poi_values[e, k], poi_base
-            within = min(radius_sq, poi_radius_sq[k])
+    for m in range(n_candidates):  # the agents by index
+        j = candidates[m]
+        dx, dy = positions[e, j, 0] - xi, positions[e, j, 1] - yi
         dist_sq = dx * dx + dy * dy
-        if dist_sq > within:
+        if dist_sq > radius_sq or j == i:
             continue
         if world:
-            q = base + world_sector(dx, dy, n_sectors)
+            q = agent_base[j] + world_sector(dx, dy, n_sectors)
         else:
-            q = base + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
-        if measure == 0:
-            term = num / max(dist_sq, d_min_sq)  # Eq. 14
+            q = agent_base[j] + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
+        _add(acc, count, q, 1.0, dist_sq, d_min_sq, radius_sq, measure, compose)
+    for k in range(poi_positions.shape[1]):  # then the POIs
+        if not visible[k] or (disappear[k] and state.captured[e, k]):
+            continue
+        dx, dy = poi_positions[e, k, 0] - xi, poi_positions[e, k, 1] - yi
+        dist_sq = dx * dx + dy * dy
+        if dist_sq > min(radius_sq, poi_radius_sq[k]):
+            continue
+        if world:
+            q = poi_base + world_sector(dx, dy, n_sectors)
         else:
-            term = num * (1.0 - math.sqrt(dist_sq) / math.sqrt(radius_sq))
-        if compose == 2:  # closest: the largest term
-            acc[q] = max(acc[q], term) if count[q] > 0 else term
-        else:
-            acc[q] += term
-        count[q] += 1
+            q = poi_base + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
+        _add(acc, count, q, poi_values[e, k], dist_sq, d_min_sq, radius_sq, measure, compose)
     for q in range(n_channels):
         if count[q] == 0:
             obs[e, i, q] = empty
