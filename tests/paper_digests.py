@@ -15,9 +15,12 @@ Each digest is sha256 over the bytes of a seeded computation's outputs:
 - ``config``: the default config's TOML.
 
 The critics' sums are reassociated by the compiler (their last bits follow the CPU's
-vector width), so the critic methods are left out. The digests are recorded with the
-platform they were made on (numba's CPU target and features, numpy, numba and pymunk);
-``tests/test_paper_unchanged.py`` compares them only on the same platform.
+vector width), so the critic methods are left out. Everything else is compiled without
+fast-math (no reassociation, no fused multiply-adds) and the policies' tanh is our own,
+correctly rounded: the digests do not depend on the x86-64 CPU (the same on znver4, where
+they were recorded, and znver3, listed under ``verified_on``). They do depend on numpy,
+numba and pymunk (random streams, codegen, Chipmunk), whose versions are recorded;
+``tests/test_paper_unchanged.py`` compares them on any x86-64 machine with those versions.
 """
 
 from __future__ import annotations
@@ -31,12 +34,28 @@ import numpy as np
 
 DIGESTS = Path(__file__).parent / "data" / "paper-digests.json"
 
+_LIDAR = {"kind": "lidar", "empty": -1.0, "channels": "by-class"}
 WORLDS = {
     "ideal": {},
     "sectors6-radius5": {"sensor": {"kind": "density", "sectors": 6, "radius": 5.0}},
     "physics": {"motion": "physics"},
     "physics-walls": {"motion": "physics", "walls": True},
-}
+    # the mixed-team study's task at n_req 1 (physrover/sweeps/mixed-team.toml), and an
+    # ordered and a final POI: what issue 33 added, recorded from f2ead5f, where it still
+    # stepped in Python, and compiled into the one step since
+    "mixed-team": {
+        "n_req": 1, "scenario": {"kind": "uniform", "half_size": 15.0, "min_separation": 8.0},
+        "pois": [{"value": float(v), "visible_to": ["uav"], "disappear": "captured"}
+                 for v in (1, 2, 3, 4)],
+        "agents": [{"name": "rover", "count": 4, "moves_with": ["uav"],
+                    "sensor": {**_LIDAR, "radius": 3.0}},
+                   {"name": "uav", "count": 2, "captures": False, "influence_radius": 5.0,
+                    "sensor": {**_LIDAR, "radius": 100.0}}],
+    },
+    "chain": {"n_req": 2, "poi_ring_radius": 4.0,
+              "pois": [{"value": 1.0}, {"value": 2.0, "after": [0]}, {"value": 3.0},
+                       {"value": 4.0, "score_at": "final"}]},
+}  # fmt: skip
 
 
 def _hash(arrays) -> str:
@@ -100,5 +119,6 @@ def digests() -> dict:
 if __name__ == "__main__":
     if sys.argv[1:] != ["--write"]:
         sys.exit(__doc__)
-    DIGESTS.write_text(json.dumps({"platform": platform(), "digests": digests()}, indent=1) + "\n")
+    record = {"platform": platform(), "verified_on": [platform()], "digests": digests()}
+    DIGESTS.write_text(json.dumps(record, indent=1) + "\n")
     print(f"wrote {DIGESTS}")

@@ -186,3 +186,92 @@ def test_the_kernel_cache_is_keyed_by_every_source_file(tmp_path, monkeypatch):
     assert compiled.sources_key(tmp_path) != before
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
     assert compiled.cache_dir() == str(tmp_path / "cache" / f"numba-{compiled.sources_key()}")
+
+
+# The domain's rooms (physrover/domain/, DESIGN.md), lowest first: each imports itself and
+# the rooms listed for it, so a rule lives where its concept does.
+DOMAIN_ROOMS = {
+    "state": set(),
+    "broadphase": set(),
+    "obstacles": set(),
+    "agents": {"state"},
+    "motion": {"state", "broadphase", "obstacles", "agents"},
+    "sensing": {"state", "broadphase", "agents"},
+    "scoring": {"state", "agents"},
+    "scenarios": {"obstacles"},
+    "plan": {"agents", "motion", "sensing", "scoring"},
+    "step": {"state", "motion", "sensing", "scoring"},
+    "world": {"state", "agents", "motion", "scoring", "scenarios", "plan", "step"},
+}
+
+
+def _domain_room(module: str) -> str:
+    room = module.split(".")[1]
+    assert room in DOMAIN_ROOMS, f"physrover.{module} is in no room of the domain's map"
+    return room
+
+
+def test_the_domain_is_organised_by_concept():
+    """Each room of physrover/domain/ imports only the rooms below it in the map; each
+    folder says what it owns and what it may import."""
+    crossing = []
+    for module, targets in _imports().items():
+        if not module.startswith("domain.") or module.endswith("__init__"):
+            continue
+        room = _domain_room(module)
+        for target, _ in targets:
+            if target.startswith("domain.") and _domain_room(target) not in DOMAIN_ROOMS[room] | {
+                room
+            }:
+                crossing.append(f"physrover.{module} imports physrover.{target}")
+    assert not crossing, "\n".join(crossing)
+    for folder in ("agents", "motion", "sensing", "scoring"):
+        doc = ast.get_docstring(ast.parse((ROOT / "domain" / folder / "__init__.py").read_text()))
+        assert doc and "Owns" in doc and "May import" in doc, f"physrover/domain/{folder}"
+    modules = {p.stem for p in (ROOT / "domain").glob("*.py")} - {"__init__"}
+    folders = {p.name for p in (ROOT / "domain").iterdir() if (p / "__init__.py").is_file()}
+    assert modules | folders == set(DOMAIN_ROOMS)
+
+
+def test_no_private_name_is_imported_across_modules():
+    private = []
+    for path in ROOT.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("physrover"):
+                private += [f"{path.relative_to(ROOT)}: {a.name}" for a in node.names
+                            if a.name.startswith("_") and a.name != "__version__"]  # fmt: skip
+    assert not private, private
+
+
+STEP_PARTS = {
+    "move": {"move_team"},
+    "sense": {"sense_team", "sense_classes", "sense", "lidar_rows"},
+    "score": {"score_team", "score"},
+}
+
+
+def _calls(functions: dict, name: str, seen: set) -> set:
+    """The names function ``name`` calls, itself or through the functions of its module."""
+    out = set()
+    for c in ast.walk(functions[name]):
+        if isinstance(c, ast.Call) and isinstance(c.func, ast.Name | ast.Attribute):
+            callee = c.func.id if isinstance(c.func, ast.Name) else c.func.attr
+            out.add(callee)
+            if callee in functions and callee not in seen:
+                out |= _calls(functions, callee, seen | {callee})
+    return out
+
+
+def test_the_step_is_composed_once():
+    """Only physrover.domain.step calls (itself or through helpers of its module) the
+    kernels of more than one part of the step (move, sense, score): a second composition,
+    in the world, a learner's episode or an env, fails here."""
+    composers = []
+    for path in ROOT.rglob("*.py"):
+        functions = {node.name: node for node in ast.walk(ast.parse(path.read_text()))
+                     if isinstance(node, ast.FunctionDef)}  # fmt: skip
+        for name in functions:
+            called = _calls(functions, name, {name})
+            if sum(bool(called & names) for names in STEP_PARTS.values()) > 1:
+                composers.append(f"{path.relative_to(ROOT)}:{name}")
+    assert sorted(composers) == ["domain/step.py:step_team", "domain/step.py:step_teams"], composers

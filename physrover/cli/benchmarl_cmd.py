@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from physrover.cli.commands import UsageError, _next_free
+from physrover.cli.commands import UsageError, next_free
 from physrover.config import DomainConfig
 from physrover.core.threads import pin_threads
 
@@ -77,7 +77,7 @@ def cmd_benchmarl(args: argparse.Namespace) -> int:
         ) from None
     pin_threads(args.threads)
     overrides = with_defaults(list(args.overrides))
-    out = _next_free(Path(args.out))
+    out = next_free(Path(args.out))
     try:
         experiment = benchmarl_task.compose_experiment(overrides, save_folder=out)
     except (HydraException, OmegaConfBaseException, ValueError) as exc:

@@ -63,10 +63,10 @@ def _default_out(config: RunConfig, args: argparse.Namespace) -> Path:
     for text in sorted(getattr(args, "set", None) or []):
         field, value = (part.strip() for part in text.split("=", 1))
         name += "_" + re.sub(r"[^\w.,+=-]", "", f"{field}={value}")
-    return _next_free(Path("runs") / name)
+    return next_free(Path("runs") / name)
 
 
-def _next_free(base: Path) -> Path:
+def next_free(base: Path) -> Path:
     """``base``, or ``base-2``, ``base-3``, ... : the first that holds no run (missing or
     an empty directory)."""
     out, n = base, 1
@@ -278,7 +278,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from physrover.experiment.training import train
 
     pin_threads(1)
-    out = _next_free(Path(args.out))
+    out = next_free(Path(args.out))
     config = RunConfig().with_overrides(
         {"method": "max-critic", "generations": args.generations, "checkpoint_every": 500}
     )

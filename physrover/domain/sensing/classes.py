@@ -33,7 +33,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from physrover.core.compiled import jit
+from physrover.core.compiled import jit, jit_inline
 from physrover.domain.agents.classes import class_rows, class_sensor
 from physrover.domain.broadphase import grid
 from physrover.domain.sensing.density import Density
@@ -153,7 +153,6 @@ class SensingScratch(NamedTuple):
 
     acc: np.ndarray
     count: np.ndarray
-    everyone: np.ndarray
     near: np.ndarray
 
 
@@ -161,7 +160,7 @@ class SensingScratch(NamedTuple):
 def sensing_scratch(sensing, n_agents):
     """Scratch of :func:`sense_classes` for teams of ``n_agents``."""
     return SensingScratch(np.zeros(sensing.max_channels), np.zeros(sensing.max_channels,
-                          np.int64), np.arange(n_agents), np.empty(n_agents, np.int64))  # fmt: skip
+                          np.int64), np.empty(n_agents, np.int64))  # fmt: skip
 
 
 @jit
@@ -185,12 +184,22 @@ def _near(i, cells, nx, ny, starts, members, reach, out):
     return n
 
 
+@jit_inline
+def _sense_agent(e, i, c, state, sensing, candidates, n_candidates, acc, count, obs):
+    """Agent i of class c through its row of the table (:func:`lidar_agent`)."""
+    lidar_agent(e, i, state, sensing.d_min_sq, sensing.n_sectors[c], sensing.radius_sq[c],
+                sensing.compose[c], sensing.measure[c], sensing.empty[c], sensing.world[c],
+                sensing.agent_base[c], sensing.poi_base[c], sensing.visible[c],
+                sensing.poi_radius_sq[c], sensing.disappear[c], sensing.n_channels[c],
+                candidates, n_candidates, acc, count, obs)  # fmt: skip
+
+
 @jit
 def sense_classes(e, state, sensing, obs, scratch):
     """Every compiled class's readings for team ``e`` (:func:`lidar_agent`, the module
     docstring) into ``obs[e]`` (R, >= max_channels) float32, each row's columns past its
     class's size set to 0."""
-    acc, count, everyone, near = scratch
+    acc, count, near = scratch
     n_agents, width = state.cos_h.shape[1], obs.shape[2]
     cells = np.empty((0, 2), np.int64)
     starts = members = np.empty(0, np.int64)
@@ -208,15 +217,9 @@ def sense_classes(e, state, sensing, obs, scratch):
         for i in range(sensing.first[c], sensing.stop[c]):
             if sensing.local[c]:
                 n_near = _near(i, cells, nx, ny, starts, members, reach, near)
-                candidates = near
+                _sense_agent(e, i, c, state, sensing, near, n_near, acc, count, obs)
             else:
-                n_near, candidates = n_agents, everyone
-            lidar_agent(e, i, state, sensing.d_min_sq, sensing.n_sectors[c],
-                        sensing.radius_sq[c], sensing.compose[c], sensing.measure[c],
-                        sensing.empty[c], sensing.world[c], sensing.agent_base[c],
-                        sensing.poi_base[c], sensing.visible[c], sensing.poi_radius_sq[c],
-                        sensing.disappear[c], sensing.n_channels[c], candidates, n_near, acc,
-                        count, obs)  # fmt: skip
+                _sense_agent(e, i, c, state, sensing, None, n_agents, acc, count, obs)
             for q in range(sensing.n_channels[c], width):
                 obs[e, i, q] = 0.0
 

@@ -195,7 +195,8 @@ def lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, e
                 agent_base, poi_base, visible, poi_radius_sq, disappear, n_channels,
                 candidates, n_candidates, acc, count, obs):  # fmt: skip
     """The lidar reading of agent i of team e into ``obs[e, i, :n_channels]``: the agents
-    ``candidates[:n_candidates]`` (ascending: every agent, or those a grid found near),
+    ``candidates[:n_candidates]`` (ascending: those a grid found near; None: every agent,
+    ``n_candidates`` of them, compiled without the indirection),
     then every POI, each within its distance adding its term to its channel; ``compose``
     and ``measure`` index :data:`COMPOSE` and :data:`MEASURES`, ``radius_sq`` is inf for no
     radius, ``world`` the world-frame bearing (module docstring); ``agent_base`` to
@@ -208,7 +209,7 @@ def lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, e
         acc[q] = 0.0
         count[q] = 0
     for m in range(n_candidates):  # the agents by index
-        j = candidates[m]
+        j = m if candidates is None else candidates[m]
         dx, dy = positions[e, j, 0] - xi, positions[e, j, 1] - yi
         dist_sq = dx * dx + dy * dy
         if dist_sq > radius_sq or j == i:
@@ -246,14 +247,13 @@ def lidar_rows(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, w
     """:func:`lidar_agent` for agents ``first`` to ``stop - 1`` of every team of ``state``,
     each seeing every agent: ``obs[:, first:stop, :n_channels]``."""
     n_teams, n_rovers = state.cos_h.shape
-    candidates = np.arange(n_rovers)
     acc = np.zeros(n_channels)
     count = np.zeros(n_channels, dtype=np.int64)
     for e in range(n_teams):
         for i in range(first, stop):
             lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, empty,
                         world, agent_base, poi_base, visible, poi_radius_sq, disappear,
-                        n_channels, candidates, n_rovers, acc, count, obs)  # fmt: skip
+                        n_channels, None, n_rovers, acc, count, obs)  # fmt: skip
 
 
 __all__ = ["BEARINGS", "CHANNELS", "COMPOSE", "MEASURES", "Lidar", "SensingView", "lidar_agent",
