@@ -254,3 +254,97 @@ def test_random_class_scans_match_plain_loops(seed):
         world.rover_positions[:, :3] - world.poi_positions[:, None, 0], axis=-1
     )
     assert (to_hidden <= 10.0).any()  # a rover would have sensed the hidden POI
+
+
+BIG_TEAM = """
+[domain]
+n_req = 1
+scenario = {{ kind = "uniform", half_size = {half}, min_separation = 4.0 }}
+[[pois]]
+value = 1.0
+visible_to = ["uav"]
+[[pois]]
+value = 2.0
+[[agents]]
+name = "rover"
+count = {rovers}
+[agents.sensor]
+kind = "lidar"
+radius = 3.0
+empty = -1.0
+channels = "by-class"
+compose = "{compose}"
+[[agents]]
+name = "uav"
+count = {uavs}
+captures = false
+sensor = {{ kind = "lidar", radius = 10.0, channels = "by-class", measure = "linear" }}
+"""
+
+
+@pytest.mark.parametrize("compose", ["density", "average", "closest"])
+def test_the_grid_reads_what_every_pair_reads_bit_for_bit(compose):
+    """A team above LIDAR_GRID_MIN_POINTS with finite radii finds each class's neighbours
+    from the grid (physrover.domain.sensing.classes), in index order: its readings are the
+    all-pairs readings bit for bit, in a dense spread and a sparse one."""
+    import dataclasses
+
+    from physrover.domain.sensing.classes import LIDAR_GRID_MIN_POINTS
+
+    for half, rovers, uavs in [(8.0, 80, 20), (40.0, 120, 30)]:
+        domain = DomainConfig.from_toml(BIG_TEAM.format(half=half, rovers=rovers, uavs=uavs,
+                                                        compose=compose))  # fmt: skip
+        assert domain.n_rovers >= LIDAR_GRID_MIN_POINTS
+        worlds = [RoverWorld(domain, 2) for _ in range(2)]
+        classes = worlds[0].plan.step.classes
+        assert classes.local.all() and classes.cell == 3.0
+        every_pair = classes._replace(local=classes.local & False, cell=0.0)
+        step = worlds[1].plan.step._replace(classes=every_pair)
+        worlds[1].plan = dataclasses.replace(worlds[1].plan, step=step)
+        actions = np.random.default_rng(4).uniform(-1, 1, (domain.steps, 2, domain.n_rovers, 2))
+        play_alike(worlds, actions)
+        a, b = worlds
+        np.testing.assert_array_equal(a.observations, b.observations)
+        assert (a.observations[..., :12] > 0).any() and (a.observations == -1).any()
+
+
+MIXED_SENSORS = """
+[domain]
+n_req = 1
+scenario = { kind = "uniform", half_size = 5.0, min_separation = 1.0 }
+[[agents]]
+name = "rover"
+count = 3
+sensor = { kind = "lidar", radius = 6.0, empty = -1.0, channels = "by-class" }
+[[agents]]
+name = "scout"
+count = 2
+sensor = { kind = "lidar", sectors = 5, bearing = "world", compose = "average", radius = 8.0 }
+[[agents]]
+name = "uav"
+count = 2
+captures = false
+sensor = { kind = "density", sectors = 6, radius = 7.0 }
+"""
+
+
+def test_the_classes_table_is_each_sensor_s_own_kernel():
+    """The compiled step's table of the classes (a lidar by class, a world-bearing lidar of
+    five sectors, a density sensor of six) reads, class by class, what each class's sensor
+    reads through its own observe, and 0 past the class's size."""
+    domain = DomainConfig.from_toml(MIXED_SENSORS)
+    world = RoverWorld(domain, 3)
+    world.reset([np.random.default_rng(e) for e in range(3)])
+    rng = np.random.default_rng(1)
+    for _ in range(6):
+        obs = world.step(rng.uniform(-1, 1, (3, domain.n_rovers, 2)))
+    for c, (agent, rows) in enumerate(zip(domain.agents, [slice(0, 3), slice(3, 5),
+                                                          slice(5, 7)], strict=True)):  # fmt: skip
+        sensor = agent.sensor
+        alone = np.zeros((3, domain.n_rovers, world.obs_dim), dtype=np.float32)
+        if hasattr(sensor, "view"):
+            sensor.observe_class(world.state, domain.d_min, alone, sensor.view(domain, c), rows)
+        else:
+            sensor.observe(world.state, domain.d_min, alone[..., : sensor.dim])
+        np.testing.assert_array_equal(obs[:, rows], alone[:, rows], err_msg=agent.name)
+        assert (obs[:, rows] != 0).any(), agent.name
