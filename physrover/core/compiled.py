@@ -104,3 +104,28 @@ def dims(n: int) -> tuple[int, ...]:
     that size unrolled (what hand-unrolled loops did for the paper's 8 observations and 10
     critic inputs)."""
     return (0,) * n
+
+
+def bind(kernel, *args, packed: bool = False):
+    """``kernel``'s compiled version for the types of ``args``, callable without numba's
+    dispatch (which types every argument at every call: a tuple of arrays, as a world's
+    plan, costs microseconds in Python). Compiles it, or loads it from the cache, first.
+    The caller must pass arguments of the same types. With ``packed``, the last of
+    ``args`` is the tuple of ``kernel``'s ``*args`` parameter, and the returned function
+    takes it as one tuple too (unpacking it at every call cost a microsecond). Under
+    ``NUMBA_DISABLE_JIT=1`` this calls ``kernel`` itself."""
+    if not hasattr(kernel, "overloads"):
+        return (lambda *given: kernel(*given[:-1], *given[-1])) if packed else kernel
+    flat = (*args[:-1], *args[-1]) if packed else args
+    _, folded = kernel.fold_argument_types(tuple(kernel.typeof_pyval(a) for a in flat), {})
+    signature = tuple(folded)  # a ``*args`` parameter folded into one tuple, as numba does
+    kernel.compile(signature)
+    return kernel.overloads[signature].entry_point
+
+
+def array_type_key(array) -> tuple:
+    """What decides numba's type of a numpy array (dtype, dimensions, layout, flags): the
+    key under which a :func:`bind` of it may be reused."""
+    flags = array.flags
+    return (array.dtype.str, array.ndim, flags.c_contiguous, flags.f_contiguous,
+            flags.writeable, flags.aligned)  # fmt: skip

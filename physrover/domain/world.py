@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from physrover.config import DomainConfig
+from physrover.core.compiled import array_type_key, bind
 from physrover.core.registry import DYNAMICS
 from physrover.domain.agents.classes import spawn
 from physrover.domain.motion.ideal import clip_teams
@@ -142,6 +143,8 @@ class RoverWorld:
         self.position_history = np.zeros((*states, 2))
         self.heading_history = np.zeros(states)
         self._clipped = np.zeros((self.n_teams, self.n_rovers, ACTION_DIM))
+        self._bound, self._bound_plan = {}, None  # step_teams compiled for this world
+        self._sense_only = (None, None)  # (plan, its step without motion): the reset's
         self.fresh_teams = 0
         """Under the scenario's redraw = "generation", the last this many teams draw their own
         start states (the CCEA's evaluation episodes); the others share one."""
@@ -185,7 +188,9 @@ class RoverWorld:
             self.plan.step.rules.start()
         self.t = 0
         # state 0: sensed, scored and recorded by the step without its motion
-        return self._step(self._clipped, self.plan.step._replace(motion=None), 0)
+        if self._sense_only[0] is not self.plan:
+            self._sense_only = (self.plan, self.plan.step._replace(motion=None))
+        return self._step(self._clipped, self._sense_only[1], 0)
 
     def _draw(self, rngs: Sequence[np.random.Generator]) -> StartState:
         """The scenario's start states for this reset, under its redraw mode."""
@@ -242,8 +247,15 @@ class RoverWorld:
         and its records; returns the new observations."""
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
         actions = self.actions[max(t - 1, 0)]  # step t's clipped commands (none at reset)
-        ok = step_teams(commands, t, plan, actions, obs, self.position_history[t],
-                        self.heading_history[t], *self.state)  # fmt: skip
+        args = (commands, t, plan, actions, obs, self.position_history[t],
+                self.heading_history[t], self.state)  # fmt: skip
+        key = (array_type_key(commands), t == 0)
+        if self._bound_plan is not self.plan:  # a new plan (or none yet): compile anew
+            self._bound, self._bound_plan = {}, self.plan
+        kernel = self._bound.get(key)
+        if kernel is None:  # step_teams compiled for these types, called without dispatch
+            kernel = self._bound[key] = bind(step_teams, *args, packed=True)
+        ok = kernel(*args)
         if not ok:
             raise ValueError("actions contain NaN")
         self._observe_in_python(obs)
