@@ -266,8 +266,8 @@ class RoverVectorEnv(VectorEnv):
         then ``steps`` calls of ``step`` would play it, without building gymnasium's
         per-step infos (the learners' fast path). A policy with a ``play(world, obs,
         headings)`` method plays the episode itself (a
-        :class:`~physrover.learn.rollout.TeamPolicy` compiles it into one call on a fused
-        world; ``headings=False`` lets it skip the heading angles). Returns the world, at
+        :class:`~physrover.learn.rollout.TeamPolicy` compiles it into one call on a
+        compiled world; ``headings=False`` lets it skip the heading angles). Returns the world, at
         the episode's end; the next ``step`` autoresets as after any last step."""
         if self._rngs is None:
             raise RuntimeError("call reset(seed=...) first: the generators are made there")

@@ -6,7 +6,7 @@ sensor). A policy's parameters are one flat genome vector of length P, laid out 
 ``W1 (n_in x H) | b1 (H) | W2 (H x 2) | b2 (2)``;
 the populations are a (R, k, P) float32 array, so selection, copying and mutation are array
 operations; a batch of teams plays through the compiled forward pass
-(:mod:`physrover.learn.forward`), a whole episode at once on a fused world
+(:mod:`physrover.learn.forward`), a whole episode at once on a compiled world
 (:mod:`physrover.learn.rollout`).
 """
 
@@ -50,7 +50,7 @@ class PolicyLayout:
     def prepare(self, genomes: np.ndarray) -> TeamPolicy:
         """The policy ``obs (E, R, n_in) -> actions (E, R, n_out)`` of fixed (E, R, P)
         genomes, for the steps of an episode (the genomes are laid out once); a
-        :class:`~physrover.learn.rollout.TeamPolicy`, which a fused world plays as one
+        :class:`~physrover.learn.rollout.TeamPolicy`, which a compiled world plays as one
         compiled episode."""
         from physrover.learn.rollout import TeamPolicy
 

@@ -1,18 +1,19 @@
-"""Whole episodes of policy teams: the learners' hot path.
+""":func:`play_episode` plays one episode of every team of a world under a :class:`TeamPolicy`
+(one genome per agent of each team): the learners' hot path. Where the world's whole step
+is compiled (idealised motion and built-in sensors, agent classes, lidars and POI rules
+included: :attr:`RoverWorld.compiled <physrover.domain.world.RoverWorld.compiled>`) the
+whole episode is one compiled call, :func:`policy_episode`: for each team, every step's
+policy forward pass (:func:`~physrover.learn.forward.forward_team`) and then the world's
+own step (:func:`physrover.domain.step.step_team`), team by team while the team's data is
+in cache. Otherwise (physical motion, a user's part) it steps the world, calling the
+policy's compiled forward pass in between.
 
-:func:`play_episode` plays one episode of every team of a world under a :class:`TeamPolicy`
-(one genome per rover of each team). Under idealised motion with the built-in sensor (the
-world's fused step) the whole episode is one compiled call, :func:`ideal_episode`: for each
-team, every step's policy forward pass (:func:`~physrover.learn.forward.forward_team`), move,
-sense and score (the world step's own kernels, :mod:`physrover.domain.step`) and the
-records, team by team while the team's data is in cache. Otherwise (physical motion, custom
-parts) it steps the world, calling the policy's compiled forward pass in between.
-
-Both give the same results, bit for bit: the same kernels in the same order on the same
-numbers (``tests/test_rollout.py`` plays the same teams both ways, for every fitness method's
-use). The one difference: the fused episode may skip the heading angles (``headings=False``,
-what the CCEA asks for: nothing under idealised motion reads them, and libm's atan2 is a
-sixth of the world's step), which are then NaN in ``heading_history`` and the state.
+Both give the same results, bit for bit: the same step in the same order on the same
+numbers (``tests/test_rollout.py`` plays the same teams both ways, for every fitness
+method's use). The one difference: the compiled episode may skip the heading angles
+(``headings=False``, what the CCEA asks for: nothing under idealised motion reads them, and
+libm's atan2 is a sixth of the world's step), which are then NaN in ``heading_history``
+and the state.
 """
 
 from __future__ import annotations
