@@ -52,3 +52,18 @@ def play_alike(worlds, actions) -> None:
         world.reset([np.random.default_rng(e) for e in range(world.n_teams)])
         for a in actions:
             world.step(a)
+
+
+def score_paths(world, paths, record=False) -> None:
+    """Score hand-made positions of team 0 of a just reset ``world``: ``paths[t]`` the (R,
+    2) positions at step t, for t = 1 .. (``paths[0]`` is the reset's), with the world's
+    own scoring plan (its POI rules, or the mask of the agents that capture); ``record``
+    also writes them into ``position_history`` (what influence credit reads)."""
+    from physrover.domain.scoring.captures import score
+
+    step = world.plan.step
+    for t, positions in enumerate(paths[1:], start=1):
+        world.state.rover_positions[0] = positions
+        if record:
+            world.position_history[t, 0] = positions
+        score(world.state, world.config.d_cap, step.n_req, t, step.rules, step.counted)

@@ -3,10 +3,10 @@ episodes, and D where nobody influences anyone."""
 
 import numpy as np
 import pytest
+from conftest import score_paths
 from oracles import indirect_difference_loops
 
 from physrover.config import DomainConfig, LearnConfig
-from physrover.domain.scoring.captures import score
 from physrover.domain.scoring.credit import CREDITS
 from physrover.domain.scoring.influence import replay_captures
 from physrover.domain.scoring.rules import PoiRules
@@ -34,17 +34,7 @@ def _episode(paths, pois=((0.0, 0.0),), values=(2.0,)):
     world.reset([np.random.default_rng(0)], StartOverrides(
         rover_positions=np.asarray(paths[0], dtype=float), rover_headings=np.zeros(3),
         poi_positions=np.asarray(pois, dtype=float)))  # fmt: skip
-    for t, positions in enumerate(paths[1:], start=1):
-        world.state.rover_positions[0] = positions
-        world.position_history[t, 0] = positions
-        score(
-            world.state,
-            domain.d_cap,
-            world.n_req,
-            t,
-            world.plan.step.rules,
-            world.plan.step.counted,
-        )
+    score_paths(world, paths, record=True)
     return world
 
 

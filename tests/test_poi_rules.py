@@ -4,11 +4,10 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import play_alike
+from conftest import play_alike, score_paths
 from oracles import score_rules_loops
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
-from physrover.domain.scoring.captures import score
 from physrover.domain.scoring.credit import CREDITS
 from physrover.domain.scoring.rules import PoiRules
 from physrover.domain.world import RoverWorld, StartOverrides
@@ -90,16 +89,7 @@ def _scored(pois, paths, poi_positions, n_rovers=None, steps=4, **domain):
     world.reset([np.random.default_rng(0)], StartOverrides(
         rover_positions=paths[0], rover_headings=np.zeros(n_rovers),
         poi_positions=poi_positions))  # fmt: skip
-    for t, positions in enumerate(paths[1:], start=1):
-        world.state.rover_positions[0] = positions
-        score(
-            world.state,
-            config.d_cap,
-            world.n_req,
-            t,
-            world.plan.step.rules,
-            world.plan.step.counted,
-        )
+    score_paths(world, paths)
     return world
 
 
@@ -289,16 +279,7 @@ def test_a_typed_poi_needs_each_class_it_names():
         world.reset([np.random.default_rng(0)], StartOverrides(
             rover_positions=np.asarray(paths[0], dtype=float), rover_headings=np.zeros(3),
             poi_positions=np.asarray(pois)))  # fmt: skip
-        for t, positions in enumerate(paths[1:], start=1):
-            world.state.rover_positions[0] = positions
-            score(
-                world.state,
-                domain.d_cap,
-                world.n_req,
-                t,
-                world.plan.step.rules,
-                world.plan.step.counted,
-            )
+        score_paths(world, paths)
         return world
 
     # two rovers but no UAV, then the UAV alone: never both classes at one step
