@@ -249,3 +249,30 @@ def test_a_name_in_two_tables_must_be_written_with_its_table():
         config.replace(spawn_radius=5.0)
     assert config.replace(**{"sensor.spawn_radius": 5.0}).sensor.spawn_radius == 5.0
     assert config.replace(**{"scenario.spawn_radius": 5.0}).scenario.spawn_radius == 5.0
+
+
+def test_a_class_with_a_sensor_of_its_own_is_observed_from_python():
+    """In a mixed team, a class whose sensor brings no kernel (a user's) is observed from
+    Python after the compiled step, into its rows (the rest of each row 0), and the world
+    says so; the other class stays compiled, as it reads alone."""
+    from physrover.domain.world import RoverWorld
+
+    text = (
+        '[domain]\nn_req = 1\n[[agents]]\nname = "rover"\ncount = 3\n'
+        'sensor = { kind = "lidar", radius = 6.0, empty = -1.0 }\n'
+        '[[agents]]\nname = "scout"\ncount = 2\nsensor = { kind = "test-sectors", n = 3 }\n'
+    )
+    domain = DomainConfig.from_toml(text)
+    with pytest.warns(UserWarning, match="sensor Sectors brings no compiled kernel"):
+        world = RoverWorld(domain, 2)
+    assert world.obs_dim == 8 and world.plan.step.classes.compiled.tolist() == [True, False]
+    world.reset([np.random.default_rng(e) for e in range(2)])
+    obs = world.step(np.random.default_rng(0).uniform(-1, 1, (2, 5, 2)))
+    scouts = np.zeros((2, 5, 6), dtype=np.float32)
+    Sectors(n=3).observe(world.state, domain.d_min, scouts)
+    np.testing.assert_array_equal(obs[:, 3:, :6], scouts[:, 3:])
+    assert (obs[:, 3:, 6:] == 0).all() and (obs[:, 3:, :6] != 0).any()
+    rovers = np.zeros((2, 5, 8), dtype=np.float32)
+    lidar = domain.agents[0].sensor
+    lidar.observe_class(world.state, domain.d_min, rovers, lidar.view(domain, 0), slice(0, 3))
+    np.testing.assert_array_equal(obs[:, :3], rovers[:, :3])

@@ -109,9 +109,10 @@ class ClassSensing(NamedTuple):
             if kind is Lidar:
                 view = sensor.view(config, c)
                 lidar = sensor
-            else:  # the density sensor as a lidar (module docstring), or a Python sensor
-                lidar = Lidar(sectors=getattr(sensor, "sectors", 4),
-                              radius=getattr(sensor, "radius", math.inf))  # fmt: skip
+            else:  # the density sensor as a lidar (module docstring); a placeholder row for
+                # a Python sensor, which the table leaves out (compiled False)
+                lidar = Lidar(sectors=sensor.sectors, radius=sensor.radius) if kind is Density \
+                    else Lidar()  # fmt: skip
                 view = SensingView.everything(n, k, lidar.sectors)
             radius_sq = lidar.radius**2 if math.isfinite(lidar.radius) else math.inf
             values = {
