@@ -121,11 +121,3 @@ def bind(kernel, *args, packed: bool = False):
     signature = tuple(folded)  # a ``*args`` parameter folded into one tuple, as numba does
     kernel.compile(signature)
     return kernel.overloads[signature].entry_point
-
-
-def array_type_key(array) -> tuple:
-    """What decides numba's type of a numpy array (dtype, dimensions, layout, flags): the
-    key under which a :func:`bind` of it may be reused."""
-    flags = array.flags
-    return (array.dtype.str, array.ndim, flags.c_contiguous, flags.f_contiguous,
-            flags.writeable, flags.aligned)  # fmt: skip

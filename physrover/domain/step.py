@@ -121,7 +121,7 @@ def _sense_compiled(e, state, obs, density, classes, scratch):
 
 @jit_inline
 def step_team(e, t, commands, plan, state, actions, obs, positions, headings, with_headings,
-              scratch):  # fmt: skip
+              scratch, move=True):  # fmt: skip
     """Step t of team ``e`` (module docstring) under ``plan``, a
     :class:`~physrover.domain.plan.StepPlan`: ``commands`` (E, R, 2) as the policies gave
     them, checked by the caller; written: ``actions`` (E, R, 2) float32 the clipped
@@ -129,8 +129,9 @@ def step_team(e, t, commands, plan, state, actions, obs, positions, headings, wi
     observations, ``positions`` (E, R, 2) and ``headings`` (E, R) copies of the new state
     (the headings NaN unless ``with_headings``: nothing under idealised motion reads them,
     :func:`~physrover.domain.motion.ideal.ideal_move`); ``scratch`` a
-    :class:`StepScratch`."""
-    _move(e, commands, state, actions, with_headings, plan.motion, scratch.free)
+    :class:`StepScratch`; ``move`` False at reset (state 0: sensed, scored, recorded)."""
+    if move:  # False at reset: state 0 is sensed, scored and recorded, not moved into
+        _move(e, commands, state, actions, with_headings, plan.motion, scratch.free)
     _sense(e, state, obs, plan.density, plan.classes, scratch)
     if t <= plan.t_final:
         score_team(e, state, plan.d_cap_sq, plan.n_req, t, plan.rules, plan.counted)
@@ -142,16 +143,18 @@ def step_team(e, t, commands, plan, state, actions, obs, positions, headings, wi
 
 @jit
 def step_teams(commands, t, plan, actions, obs, positions, headings, *state):
-    """Step t of every team (:func:`step_team`, team by team while its data is in cache);
-    ``*state`` the world's :class:`~physrover.domain.state.WorldState`, arrays one by one
-    (numba types plain arrays at the call in C, a tuple in Python: 2 us a step). Returns
-    False, having changed nothing, if a command is NaN."""
+    """Step t of every team (:func:`step_team`, team by team while its data is in cache;
+    at t = 0, the reset's state 0, nothing moves); ``*state`` the world's
+    :class:`~physrover.domain.state.WorldState`. One compiled version serves the reset and
+    the steps of a world (each version of this kernel compiles for many seconds: the parts
+    are inlined into it). Returns False, having changed nothing, if a command is NaN."""
     if not all_commands_ok(commands):
         return False
     st = WorldState(*state)
     scratch = step_scratch(plan, st.cos_h.shape[1])
     for e in range(st.cos_h.shape[0]):
-        step_team(e, t, commands, plan, st, actions, obs, positions, headings, True, scratch)
+        step_team(e, t, commands, plan, st, actions, obs, positions, headings, True, scratch,
+                  t > 0)  # fmt: skip
     return True
 
 

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from physrover.config import DomainConfig
-from physrover.core.compiled import array_type_key, bind
+from physrover.core.compiled import bind
 from physrover.core.registry import DYNAMICS
 from physrover.domain.agents.classes import spawn
 from physrover.domain.motion.ideal import clip_teams
@@ -143,8 +143,7 @@ class RoverWorld:
         self.position_history = np.zeros((*states, 2))
         self.heading_history = np.zeros(states)
         self._clipped = np.zeros((self.n_teams, self.n_rovers, ACTION_DIM))
-        self._bound, self._bound_plan = {}, None  # step_teams compiled for this world
-        self._sense_only = (None, None)  # (plan, its step without motion): the reset's
+        self._bound, self._bound_plan = None, None  # step_teams compiled for the plan
         self.fresh_teams = 0
         """Under the scenario's redraw = "generation", the last this many teams draw their own
         start states (the CCEA's evaluation episodes); the others share one."""
@@ -187,10 +186,7 @@ class RoverWorld:
         if self.plan.step.rules is not None:
             self.plan.step.rules.start()
         self.t = 0
-        # state 0: sensed, scored and recorded by the step without its motion
-        if self._sense_only[0] is not self.plan:
-            self._sense_only = (self.plan, self.plan.step._replace(motion=None))
-        return self._step(self._clipped, self._sense_only[1], 0)
+        return self._step(self._clipped, 0)  # state 0: sensed, scored and recorded
 
     def _draw(self, rngs: Sequence[np.random.Generator]) -> StartState:
         """The scenario's start states for this reset, under its redraw mode."""
@@ -232,30 +228,27 @@ class RoverWorld:
         if actions.shape != expected:
             raise ValueError(f"actions must have shape {expected}, got {actions.shape}")
         t = self.t
-        plan = self.plan.step
-        if plan.motion is None:  # a motion model stepped from Python moves the bodies first
+        if self.plan.step.motion is None:  # a motion model stepped from Python moves first
             if not clip_teams(actions, self._clipped, self.actions[t]):
                 raise ValueError("actions contain NaN")
             self.dynamics.step(self.state, self._clipped)
-            actions = self._clipped
-        elif actions.dtype not in (np.float32, np.float64):
-            actions = actions.astype(np.float64)
-        return self._step(actions, plan, t + 1)
+            return self._step(self._clipped, t + 1)
+        # float64 (the clip is in float64 either way, so float32 commands give the same
+        # state): one compiled step for every dtype a caller passes
+        return self._step(np.array(actions, dtype=np.float64), t + 1)
 
-    def _step(self, commands: np.ndarray, plan, t: int) -> np.ndarray:
-        """The compiled step to state ``t`` (state 0 at reset, with a plan without motion)
-        and its records; returns the new observations."""
+    def _step(self, commands: np.ndarray, t: int) -> np.ndarray:
+        """The compiled step to state ``t`` (state 0 at reset: nothing moves) and its
+        records, from (E, R, 2) float64 C-contiguous ``commands``; returns the new
+        observations."""
         obs = np.empty((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
         actions = self.actions[max(t - 1, 0)]  # step t's clipped commands (none at reset)
-        args = (commands, t, plan, actions, obs, self.position_history[t],
+        args = (commands, t, self.plan.step, actions, obs, self.position_history[t],
                 self.heading_history[t], self.state)  # fmt: skip
-        key = (array_type_key(commands), t == 0)
-        if self._bound_plan is not self.plan:  # a new plan (or none yet): compile anew
-            self._bound, self._bound_plan = {}, self.plan
-        kernel = self._bound.get(key)
-        if kernel is None:  # step_teams compiled for these types, called without dispatch
-            kernel = self._bound[key] = bind(step_teams, *args, packed=True)
-        ok = kernel(*args)
+        if self._bound_plan is not self.plan:  # step_teams for this plan's types (once)
+            self._bound = bind(step_teams, *args, packed=True)
+            self._bound_plan = self.plan
+        ok = self._bound(*args)
         if not ok:
             raise ValueError("actions contain NaN")
         self._observe_in_python(obs)
