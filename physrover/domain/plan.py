@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from physrover.domain.agents.classes import class_rows, class_sensor, per_agent
+from physrover.domain.agents.classes import class_rows, class_sensor, counted_agents
 from physrover.domain.agents.roles import Roles
 from physrover.domain.motion.dynamics import compiled_motion
 from physrover.domain.scoring.captures import last_scored_step
@@ -43,7 +43,7 @@ from physrover.domain.scoring.rules import PoiRules
 from physrover.domain.sensing.classes import ClassSensing
 from physrover.domain.sensing.density import Density
 from physrover.domain.sensing.lidar import Lidar
-from physrover.domain.sensing.sensor import sensor_size
+from physrover.domain.sensing.sensor import agent_obs_sizes, sensor_size
 
 
 class Motion(NamedTuple):
@@ -82,8 +82,6 @@ class Plan:
     """Observations per agent: the widest class's."""
     python_sensors: tuple
     """(rows, sensor, view or None, size) of each class observed from Python."""
-    python_motion: bool
-    """Whether the motion model is stepped from Python (with its own kernels or not)."""
 
     @property
     def python_parts(self) -> list[str]:
@@ -121,15 +119,13 @@ def build_plan(config, dynamics, n_teams: int) -> Plan:
     else:  # the whole team's sensor has no kernel
         python_sensors.append((slice(0, config.n_rovers), sensor, None,
                                sensor_size(sensor, config)))  # fmt: skip
-    sizes = [sensor_size(class_sensor(config, c), config)
-             for c in range(len(class_rows(config)))]  # fmt: skip
     rules = PoiRules.build(config, n_teams, always=True) if _rules_needed(config) else None
-    counted = per_agent(config, [c.captures for c in config.agents], True).astype(bool)
+    counted = counted_agents(config)
     counted = None if rules is not None or counted.all() else counted
     step = StepPlan(motion, density, classes, rules, counted,
                     np.array(config.n_req_per_poi, dtype=np.int64), float(config.d_cap) ** 2,
                     int(last_scored_step(config)))  # fmt: skip
-    return Plan(step, int(max(sizes)), tuple(python_sensors), motion is None)
+    return Plan(step, max(agent_obs_sizes(config)), tuple(python_sensors))
 
 
 __all__ = ["Motion", "Plan", "StepPlan", "build_plan"]

@@ -25,6 +25,12 @@ def agent_classes(config) -> np.ndarray:
     return per_agent(config, np.arange(len(config.agents)), 0).astype(np.int64)
 
 
+def counted_agents(config) -> np.ndarray:
+    """(R,) bool: the agents that count toward couplings (their class ``captures``; every
+    agent of the paper's team)."""
+    return per_agent(config, [c.captures for c in config.agents], True).astype(bool)
+
+
 def class_names(config) -> list[str]:
     """The classes' names in ``[[agents]]`` order (``["rover"]`` for the paper's team: the
     name ``[[pois]] visible_to`` and ``require`` use for it)."""
@@ -81,4 +87,4 @@ def spawn(positions: np.ndarray, config, rngs) -> None:
 
 
 __all__ = ["agent_classes", "agent_names", "class_names", "class_rows", "class_sensor",
-           "gate_radius", "per_agent", "spawn"]  # fmt: skip
+           "counted_agents", "gate_radius", "per_agent", "spawn"]  # fmt: skip

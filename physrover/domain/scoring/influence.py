@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from physrover.core.compiled import jit
-from physrover.domain.agents.classes import per_agent
+from physrover.domain.agents.classes import counted_agents, per_agent
 from physrover.domain.scoring.captures import coupling_met, last_scored_step, predecessors_before
 from physrover.domain.scoring.difference import team_score
 from physrover.domain.scoring.rules import PoiRules
@@ -50,7 +50,7 @@ def influence(world) -> np.ndarray:
     positions = world.position_history[: last_scored_step(config) + 1]  # (T_s, E, R, 2)
     n = world.n_rovers
     radius = per_agent(config, [c.influence_radius for c in config.agents], 0.0)
-    counted = per_agent(config, [c.captures for c in config.agents], True).astype(bool)
+    counted = counted_agents(config)
     offset = positions[:, :, :, None, :] - positions[:, :, None, :, :]
     dist_sq = (offset * offset).sum(-1)  # (T_s, E, u, k)
     phi = dist_sq <= (radius * radius)[:, None]

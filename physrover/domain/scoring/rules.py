@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from physrover.config.pois import capture_radii
-from physrover.domain.agents.classes import agent_classes, class_names, per_agent
+from physrover.domain.agents.classes import agent_classes, class_names, counted_agents
 from physrover.domain.scoring.captures import last_scored_step
 
 
@@ -74,8 +74,7 @@ class PoiRules(NamedTuple):
         final = np.array([bool(p) and p.score_at == "final" for p in pois], dtype=bool)
         t_final = last_scored_step(config)
         without = np.full((n_teams, config.n_rovers, k), -1, dtype=np.int64)
-        classes = config.agents
-        counted = per_agent(config, [c.captures for c in classes], True).astype(bool)
+        counted = counted_agents(config)
         agent_class = agent_classes(config)
         names = class_names(config)
         require = np.zeros((k, len(names)), dtype=np.int64)
