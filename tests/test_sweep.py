@@ -228,3 +228,12 @@ num_envs = 8
     assert len(estimates) == 2
     for e in estimates:
         assert (e.generations, e.unit, e.runs, e.total_seconds) == (13, "it", 2, 13.0)
+
+
+def test_a_variant_is_checked_with_each_grid_value_it_runs_with(tmp_path):
+    # curriculum_start 3 needs a coupling above 3: valid with n_req 5 and 6, not with 3
+    grid = '[sweep]\nname = "cur"\n[grid]\nn_req = [5, 6]\n'
+    variant = "\n[[variants]]\ncurriculum_start = 3\n"
+    assert len(_sweep(tmp_path, grid + variant).runs(tmp_path, seeds=1)) == 2
+    with pytest.raises(ConfigError, match=r"below the domain's coupling \(n_req 3\), got 3"):
+        _sweep(tmp_path, grid.replace("[5, 6]", "[5, 3]") + variant)

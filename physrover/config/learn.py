@@ -119,6 +119,18 @@ class LearnConfig(ConfigBase):
     """Hidden size of a trajectory critic (the GRU's state, the attention's embedding)."""
     trajectory_lr: float = 1e-3
     """Adam's learning rate for a trajectory critic."""
+    curriculum_start: int = 0
+    """Beyond the paper: a coupling curriculum (:mod:`physrover.learn.curriculum`). 0: off,
+    every episode at the domain's n_req (the paper's); c >= 1: the training episodes are
+    played at coupling c (each POI's ``min(c, n_req)``), which goes up by one each time the
+    champion team scores ``curriculum_threshold`` of the POIs' total value
+    ``curriculum_patience`` generations in a row. The learning curve is always at the
+    domain's coupling."""
+    curriculum_threshold: float = 0.5
+    """The fraction of the POIs' total value (sum of V_k) the champion's mean G at the
+    training coupling must reach for the coupling to tighten."""
+    curriculum_patience: int = 10
+    """Generations in a row the champion must reach ``curriculum_threshold``."""
     checkpoint_every: int = 100
     """Write a checkpoint every this many generations (and at the end)."""
 
@@ -204,6 +216,7 @@ class LearnConfig(ConfigBase):
             f"must be > 0, got {self.mutation_scale}",
         )
         self._check_ccea_options()
+        self._check_curriculum()
         check(
             self.critic_lr >= 0 and math.isfinite(self.critic_lr),
             "critic_lr",
@@ -214,6 +227,25 @@ class LearnConfig(ConfigBase):
             "leaky_slope",
             f"must be in [0, 1), got {self.leaky_slope}",
         )
+
+    def _check_curriculum(self) -> None:
+        """The coupling curriculum's options (those needing the domain: RunConfig's)."""
+        check(self.curriculum_start >= 0, "curriculum_start",
+              f"must be >= 0 (0: off), got {self.curriculum_start}")  # fmt: skip
+        check(self.curriculum_start == 0 or self.method not in TRAINERS, "curriculum_start",
+              f"is the CCEA's; {self.method!r} is a gradient-based trainer")  # fmt: skip
+        check(
+            0.0 < self.curriculum_threshold <= 1.0,
+            "curriculum_threshold",
+            f"must be in (0, 1], a fraction of the POIs' total value, got "
+            f"{self.curriculum_threshold}",
+        )
+        check(self.curriculum_patience >= 1, "curriculum_patience",
+              f"must be >= 1, got {self.curriculum_patience}")  # fmt: skip
+        if self.curriculum_start == 0:
+            for name, default in (("curriculum_threshold", 0.5), ("curriculum_patience", 10)):
+                check(getattr(self, name) == default, name,
+                      "configures the coupling curriculum: set curriculum_start")  # fmt: skip
 
     def _check_ccea_options(self) -> None:
         """The CCEA's team formation, selection and mutation options."""

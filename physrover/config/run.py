@@ -44,6 +44,7 @@ class RunConfig:
             raise ConfigError("learn", "must be a LearnConfig")
         credit = CREDITS[self.learn.feedback] if self.learn.feedback in CREDITS else None
         getattr(credit, "check", lambda domain: None)(self.domain)  # defined for the domain?
+        self._check_curriculum()
         spec = TRAINERS[self.learn.method] if self.learn.method in TRAINERS else None
         check(spec is None or not self.domain.agents, "agents", f"{self.learn.method} trains "
               "teams of the paper's rovers only; agent classes train with the CCEA")  # fmt: skip
@@ -56,6 +57,24 @@ class RunConfig:
             raise ConfigError("trainer", f"must be a {spec.config.__name__}")
         shared = {name: getattr(self.learn, name) for name in SHARED_WITH_LEARN}
         object.__setattr__(self, "trainer", trainer.replace(**shared))
+
+    def _check_curriculum(self) -> None:
+        """A coupling curriculum (``[learn] curriculum_start``) fits the domain: it starts
+        below the domain's coupling, and its evaluation at the domain's coupling rescores
+        the same episodes (:mod:`physrover.learn.curriculum`), so no POI may vanish once
+        captured or score by a rule."""
+        start = self.learn.curriculum_start
+        if start == 0:
+            return
+        top = max(self.domain.n_req_per_poi)
+        check(start < top, "curriculum_start",
+              f"must be below the domain's coupling (n_req {top}), got {start}")  # fmt: skip
+        for k, poi in enumerate(self.domain.pois):
+            counted = poi.disappear == "never" and not poi.after and not poi.require and \
+                poi.score_at == "any"  # fmt: skip
+            check(counted, "curriculum_start", f"pois[{k}] vanishes once captured or scores "
+                  "by a rule (after, score_at, require); the curriculum needs POIs captured "
+                  "by a count of agents in range")  # fmt: skip
 
     @property
     def length(self) -> int:

@@ -292,6 +292,19 @@ class RoverWorld:
         """(K,) int64: each POI's coupling (Eq. 12)."""
         return self.plan.step.n_req
 
+    def set_coupling(self, n_req) -> None:
+        """Each POI's coupling (Eq. 12) from the next reset on: ``n_req`` one int or (K,)
+        ints in 1 .. R (a coupling curriculum's, :mod:`physrover.learn.curriculum`). The
+        compiled step reads the plan's array, so nothing recompiles; D, D++ and influence
+        credit read it too. Refused mid-episode."""
+        if 0 < self.t < self.config.steps:
+            raise RuntimeError(f"the coupling changes between episodes, not at step {self.t}")
+        values = np.broadcast_to(np.asarray(n_req), self.n_req.shape)
+        if not np.issubdtype(values.dtype, np.integer) or values.min() < 1 or \
+                values.max() > self.n_rovers:  # fmt: skip
+            raise ValueError(f"n_req must be ints in 1 .. {self.n_rovers}, got {n_req!r}")
+        self.plan.step.n_req[:] = values
+
     @property
     def compiled(self) -> bool:
         """Whether the whole step is one compiled call (idealised motion, built-in sensors):

@@ -103,8 +103,10 @@ class Sweep:
         if not isinstance(seeds, int) or seeds < 1:
             raise ConfigError("seeds", f"must be a positive integer, got {seeds!r}")
         variants = tuple(data.get("variants", [{}]))
-        for variant in variants:
-            base.with_overrides(variant)  # names and values must be valid
+        points = itertools.product(*([(f, v) for v in values] for f, values in grid.items()))
+        for point in points:  # every run's config must be valid (a variant may need the grid's)
+            for variant in variants:
+                base.with_overrides({**dict(point), **variant})
         name = str(meta.get("name", Path(path).stem))
         return cls(name, base, grid, seeds, variants, tuple(imports))
 

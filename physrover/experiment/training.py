@@ -8,7 +8,6 @@ seed. The CCEA trains here; a gradient-based trainer's run goes to
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict
 from pathlib import Path
 
 from physrover.config import ConfigError, RunConfig
@@ -22,7 +21,7 @@ from physrover.experiment.store import (
     record_provenance,
     resume_run,
 )
-from physrover.learn.ccea import CCEA, GenerationStats, stats_header
+from physrover.learn.ccea import CCEA, GenerationStats, stats_header, stats_row
 
 
 def _kernels_cached() -> bool:
@@ -73,8 +72,9 @@ def train(
 
         return train_trainer(config, out, resume=resume, progress=progress,
                              tensorboard=tensorboard)  # fmt: skip
+    header = stats_header(curriculum=config.learn.curriculum_start > 0)
     if not resume:
-        prepare_run_dir(out, config)
+        prepare_run_dir(out, config, header)
     log = TensorBoardLog(out) if tensorboard else None
     total = config.learn.generations
     bar = Progress(total, f"{config.learn.method} gen", unit="gen") if progress else None
@@ -82,17 +82,17 @@ def train(
         bar.warm_up("loading compiled kernels" if _kernels_cached()
                     else "compiling kernels, first run only")  # fmt: skip
     ccea = CCEA(config)
-    rows = resume_run(out, ccea, stats_header()) if resume else []
+    rows = resume_run(out, ccea, header) if resume else []
     record_provenance(out, ccea.generation, total)
 
     latest: list[GenerationStats] = []
 
     def next_row() -> dict:
         latest[:] = [ccea.run_generation()]
-        return asdict(latest[0])
+        return stats_row(latest[0], header)
 
     after = (lambda: on_generation(latest[0])) if on_generation else None
-    write_rows(out, ccea, next_row, stats_header(), rows, total,
+    write_rows(out, ccea, next_row, header, rows, total,
                config.learn.checkpoint_every, log, bar, restart_clock=True,
                after_row=after)  # fmt: skip
     return out

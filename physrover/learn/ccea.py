@@ -42,6 +42,7 @@ from physrover.core.compiled import dims
 from physrover.core.registry import CREDITS
 from physrover.envs.gymnasium_env import RoverVectorEnv, generator_from_state, team_spaces
 from physrover.learn.classes import team_layout
+from physrover.learn.curriculum import CouplingCurriculum, score_at_coupling
 from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.fitness import Problem, make_method
 from physrover.learn.kernels import gather_trajectories
@@ -68,6 +69,9 @@ class GenerationStats:
     wall_seconds: float
     """Seconds spent in generations since the run started, summed across resumes; includes
     compiling the kernels on a first run, excludes writing checkpoints."""
+    train_n_req: int = 0
+    """The largest coupling the training episodes were played at, under a coupling
+    curriculum (:mod:`physrover.learn.curriculum`; a metrics.csv column only then)."""
 
 
 class CCEA:
@@ -99,6 +103,12 @@ class CCEA:
             self.n_played + cfg.eval_episodes, config=d, fresh_teams=cfg.eval_episodes
         )
         self.env.reset(seed=int(env_seq.integers(2**31)))
+        self.curriculum = None  # a coupling curriculum ([learn] curriculum_start)
+        if cfg.curriculum_start:
+            self.curriculum = CouplingCurriculum(np.array(d.n_req_per_poi), cfg.curriculum_start,
+                                                 cfg.curriculum_threshold,
+                                                 cfg.curriculum_patience)  # fmt: skip
+            self.env.world.set_coupling(self.curriculum.n_req)
         self.fitness = np.zeros((self.n_rovers, self.k))
         # the fitness each policy carries into softmax team formation (NaN: not scored yet)
         self.carried = np.zeros((self.n_rovers, self.k))
@@ -164,6 +174,10 @@ class CCEA:
         champions = np.broadcast_to(self.champion, (cfg.eval_episodes, R))
         G, credit = self.rollout(np.concatenate([team_index, self._elite_index(), champions]))
         eval_G = float(G[self.n_played :].mean())
+        train_n_req = 0
+        if self.curriculum is not None:
+            train_n_req = int(self.curriculum.n_req.max())
+            eval_G = self._curriculum_step(eval_G)
         t_rollout = time.perf_counter()
 
         where = np.argsort(order, axis=-1)  # where[q, r, p]: the team of policy p
@@ -219,9 +233,22 @@ class CCEA:
             fitness_mean=float(np.nanmean(fitness)),
             critic_loss=loss,
             wall_seconds=self.wall_seconds,
+            train_n_req=train_n_req,
         )
         self.generation += 1
         return stats
+
+    def _curriculum_step(self, champion_G: float) -> float:
+        """The champion's evaluation episodes at the domain's coupling (the learning
+        curve), and the curriculum's rule on its G at the training coupling,
+        ``champion_G`` (the coupling tightens for the next generation)."""
+        world, evaluated = self.env.world, slice(self.n_played, None)
+        values = world.state.poi_values[evaluated]
+        G = score_at_coupling(world.state.in_range[:, evaluated], values,
+                              self.curriculum.target, world.plan.step.t_final)  # fmt: skip
+        if self.curriculum.observe(champion_G, float(values.sum(axis=1).mean())):
+            world.set_coupling(self.curriculum.n_req)
+        return float(G.mean())
 
     def _evolve_elites(self, fitness: np.ndarray, G: np.ndarray, team_index: np.ndarray) -> None:
         """The lab's n-elites selection (:func:`evolve_elites`) over the populations and the
@@ -281,6 +308,8 @@ class CCEA:
             "env_rng": self.env.rng_states(),
             "method": method_meta,
         }
+        if self.curriculum is not None:
+            meta["curriculum"] = self.curriculum.state()
         return arrays, json.loads(json.dumps(meta))
 
     def load_state(self, arrays: dict[str, np.ndarray], meta: dict) -> None:
@@ -299,10 +328,21 @@ class CCEA:
         for name, state in meta["rng"].items():
             setattr(self, name, generator_from_state(state))
         self.env.set_rng_states(meta["env_rng"])
+        if self.curriculum is not None:
+            self.curriculum.load(meta["curriculum"])
+            self.env.world.set_coupling(self.curriculum.n_req)
 
 
-def stats_header() -> list[str]:
-    return [f.name for f in fields(GenerationStats)]
+def stats_header(curriculum: bool = False) -> list[str]:
+    """metrics.csv's columns: :class:`GenerationStats`' fields, ``train_n_req`` only under a
+    coupling curriculum."""
+    names = [f.name for f in fields(GenerationStats)]
+    return names if curriculum else [n for n in names if n != "train_n_req"]
+
+
+def stats_row(stats: GenerationStats, header: list[str]) -> dict:
+    """A metrics.csv row of ``header``'s columns."""
+    return {name: getattr(stats, name) for name in header}
 
 
 def _flatten(tree, prefix: str = "") -> dict:

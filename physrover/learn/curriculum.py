@@ -1,0 +1,82 @@
+"""A coupling curriculum: train at a looser coupling, tighten it as the champion succeeds.
+
+Under tight coupling (the paper's n_req 5-6) D is 0 for every rover until a coupling forms,
+so the CCEA and its critics learn from a signal that is almost always 0. With
+``[learn] curriculum_start = c`` the training episodes are played at coupling ``c`` (each
+POI's ``min(c, n_req_k)``), and after every generation whose champion team scores at least
+``curriculum_threshold`` of the POIs' total value (its mean G over the evaluation episodes,
+at the training coupling) ``curriculum_patience`` generations in a row, the coupling goes
+up by one, until it is the domain's. The feedback (D, G, D++, ...) and the critics see the
+training coupling; the learning curve (``eval_G``) is always at the domain's coupling.
+
+The evaluation at the domain's coupling comes from the same episodes: the world records
+which agents are in range of each POI at every scored step (``in_range``, Eq. 13), and
+:func:`score_at_coupling` applies Eqs. 11-12 at another coupling to those records. This is
+exactly the G of the same episode played at that coupling as long as nothing an agent
+senses depends on captures, so the curriculum refuses POIs that vanish once captured and
+POI rules (ordered, final, typed POIs), whose scoring is not a count (the config says so).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def score_at_coupling(in_range: np.ndarray, poi_values: np.ndarray, n_req: np.ndarray,
+                      last_step: int) -> np.ndarray:  # fmt: skip
+    """G (Eq. 11) of each team's episode at coupling ``n_req`` (K,) int, from the recorded
+    in-range sets ``in_range`` (T + 1, E, R, K) bool (Eq. 13, the world's
+    ``state.in_range``) of steps 0 .. ``last_step`` and the POI values (E, K): POI k is
+    captured if at some scored step at least ``n_req[k]`` agents are in its range (Eq. 12).
+    Returns (E,) float64."""
+    counts = in_range[: last_step + 1].sum(axis=2)  # (T', E, K) agents in range
+    captured = (counts >= np.asarray(n_req)[None, None, :]).any(axis=0)  # (E, K)
+    return (np.asarray(poi_values, dtype=np.float64) * captured).sum(axis=1)
+
+
+class CouplingCurriculum:
+    """The training coupling of a run and the rule that tightens it (module docstring).
+
+    Args:
+        target: (K,) int, the domain's coupling of each POI.
+        start: the first training coupling (>= 1, below the largest target).
+        threshold: the fraction of the POIs' total value the champion must score.
+        patience: generations in a row it must score it before the coupling tightens.
+    """
+
+    def __init__(self, target: np.ndarray, start: int, threshold: float, patience: int):
+        self.target = np.asarray(target, dtype=np.int64)
+        self.threshold, self.patience = float(threshold), int(patience)
+        self.coupling = int(start)
+        self.streak = 0
+
+    @property
+    def n_req(self) -> np.ndarray:
+        """(K,) int64: the coupling the training episodes are played at."""
+        return np.minimum(self.target, self.coupling)
+
+    @property
+    def done(self) -> bool:
+        """Whether the training coupling is the domain's."""
+        return bool(np.array_equal(self.n_req, self.target))
+
+    def observe(self, champion_G: float, total_value: float) -> bool:
+        """The champion's mean G at the training coupling in a generation, and the POIs'
+        total value; returns True if the coupling tightens for the next generation."""
+        if self.done:
+            return False
+        self.streak = self.streak + 1 if champion_G >= self.threshold * total_value else 0
+        if self.streak < self.patience:
+            return False
+        self.coupling += 1
+        self.streak = 0
+        return True
+
+    def state(self) -> dict:
+        return {"coupling": self.coupling, "streak": self.streak}
+
+    def load(self, state: dict) -> None:
+        self.coupling, self.streak = int(state["coupling"]), int(state["streak"])
+
+
+__all__ = ["CouplingCurriculum", "score_at_coupling"]
