@@ -15,7 +15,7 @@ Adam turning its tiny gradients into full steps) and stopped learning.
 tanh), so each exports as a CCEA genome (:meth:`MADDPG.policy_genomes`). **Critics**: one
 per rover, (R x n_obs + R x 2 [+ 1 time input]) -> ``critic_hidden`` -> ``critic_hidden``
 -> 1 (ReLU). The R actors (and the R critics) are one module of stacked weights
-(:class:`StackedMLP`), so a step of every team, and every update, is a few batched matrix
+(:func:`stacked_mlp`), so a step of every team, and every update, is a few batched matrix
 products with no Python loop over rovers; Adam is element-wise, so one Adam over the
 stacked weights is R independent Adams. Actions in training are
 ``clip(mu_i(o_i) + noise_std x N(0, 1), -1, 1)``, with fixed ``noise_std``; evaluation
