@@ -371,3 +371,69 @@ def test_bench_train_checks_set_fields_against_the_methods_it_times(capsys):
     refused = ["bench", "train", "--methods", "max-critic", "--set", "trajectory_hidden=4"]
     assert main(refused) == 2
     assert "trajectory_hidden" in capsys.readouterr().err
+
+
+def test_a_resume_says_where_it_starts(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", *TINY, "--generations", "2", "--out", str(out), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["train", "--resume", str(out), "--generations", "3", "--quiet"]) == 0
+    assert f"resuming {out} from generation 2 to 3" in capsys.readouterr().err
+
+
+def test_quiet_names_the_run_directory_once(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", *TINY, "--generations", "1", "--quiet"]) == 0
+    said = capsys.readouterr()
+    assert (said.out + said.err).count("run directory:") == 1
+
+
+def test_no_run_directory_is_named_for_a_run_that_cannot_start(tmp_path, capsys, monkeypatch):
+    from physrover.experiment.loop import TensorBoardLog
+
+    def missing():
+        raise ConfigError("tensorboard", "needs the tensorboard package")
+
+    monkeypatch.setattr(TensorBoardLog, "check_installed", staticmethod(missing))
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", *TINY, "--generations", "1", "--tensorboard"]) != 0
+    said = capsys.readouterr()
+    assert "run directory:" not in said.out + said.err
+    assert "needs the tensorboard package" in said.err
+    assert not (tmp_path / "runs").exists()
+
+
+def test_agents_and_pois_tables_are_not_set_by_name(capsys):
+    assert main(["train", *TINY, "--set", "agents.count=3"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("agents.count: [[agents]] tables cannot be changed with --set or a "
+                        "sweep's grid: edit the TOML")  # fmt: skip
+    assert "\n" not in err
+
+
+def test_reports_pass_over_files_a_glob_matches_and_name_what_is_missing(tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    train(RunConfig().with_overrides({"n_rovers": 3, "n_req": 1, "population": 4, "steps": 5,
+                                      "eval_episodes": 2, "method": "D"}),
+          sweep / "a", generations=2, progress=False)  # fmt: skip
+    (sweep / "curves.csv").write_text("left by an earlier call\n")
+    globbed = [str(p) for p in sorted(sweep.iterdir())]  # what runs/sweeps/x/* expands to
+    assert main(["curves", *globbed, "--out", str(tmp_path / "c.png")]) == 0
+    assert (tmp_path / "c.png").is_file()
+    capsys.readouterr()
+    assert main(["curves", str(tmp_path / "nowhere")]) != 0
+    assert capsys.readouterr().err.strip() == f"physrover: error: {tmp_path / 'nowhere'} does " \
+        "not exist"  # fmt: skip
+    assert main(["results", str(sweep / "a")]) != 0
+    assert "is a run directory; results reads sweeps" in capsys.readouterr().err
+
+
+def test_nothing_to_draw_is_said_without_a_field_prefix(tmp_path, capsys):
+    run = tmp_path / "run"
+    train(RunConfig().with_overrides({"n_rovers": 3, "n_req": 1, "population": 4, "steps": 5,
+                                      "eval_episodes": 2, "method": "D"}),
+          run, generations=1, progress=False)  # fmt: skip
+    (run / "metrics.csv").write_text((run / "metrics.csv").read_text().splitlines()[0] + "\n")
+    assert main(["curves", str(run), "--out", str(tmp_path / "c.png")]) != 0
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("physrover: error: no generation in ")

@@ -35,6 +35,7 @@ from physrover.analysis.curve_data import (
 )
 from physrover.config import ConfigError
 from physrover.core.stats import mean_ci, t975
+from physrover.experiment.store import RunError
 
 # ----------------------------------------------------------------------------------------------
 # Figures
@@ -251,7 +252,7 @@ def _with_rows(runs: list[Run]) -> list[Run]:
     figure would say nothing)."""
     if not any(len(run.eval_G) for run in runs):
         names = ", ".join(str(run.path) for run in runs[:3]) + (" ..." if len(runs) > 3 else "")
-        raise ConfigError("runs", f"no generation in {names} yet: nothing to draw")
+        raise RunError(f"no generation in {names} yet: nothing to draw")
     return runs
 
 

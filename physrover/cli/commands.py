@@ -16,6 +16,7 @@ from pathlib import Path
 from physrover.config import RunConfig, parse_override
 from physrover.core.registry import FITNESS_METHODS
 from physrover.core.threads import pin_threads
+from physrover.experiment.loop import TensorBoardLog
 from physrover.experiment.store import last_checkpoint, load_run_config
 
 
@@ -139,11 +140,18 @@ def cmd_train(args: argparse.Namespace) -> int:
             print(f"{out} is already at {done} {config.unit}s; to extend it: "
                   f"physrover train --resume {out} {flag} {done + 1000}")  # fmt: skip
             return 0
+        if args.tensorboard:
+            TensorBoardLog.check_installed()
+        start = f"from {config.unit} {done}" if done is not None else "from the start (no " \
+            "checkpoint yet)"  # fmt: skip
+        print(f"resuming {out} {start} to {config.length}", file=sys.stderr)
     else:
         config = _run_config(args)
         out = Path(args.out) if args.out else _default_out(config, args)
-        if not args.out:
-            print(f"run directory: {out}", file=sys.stderr)  # a name of its own: say it first
+        if args.tensorboard:  # before naming a run directory that nothing will be written to
+            TensorBoardLog.check_installed()
+        if not args.out and not args.quiet:  # a name of its own: say it first
+            print(f"run directory: {out}", file=sys.stderr)
     try:
         if args.resume:
             train(None, out, resume=True, generations=args.generations,

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from physrover.cli.commands import UsageError
-from physrover.experiment.store import find_runs
+from physrover.experiment.store import CONFIG, find_runs
 
 
 def cmd_curves(args: argparse.Namespace) -> int:
@@ -71,6 +71,10 @@ def cmd_results(args: argparse.Namespace) -> int:
     for path in sweeps:
         if not path.is_dir():
             raise UsageError(f"{path} is not a directory")
+        if (path / CONFIG).is_file():
+            raise UsageError(f"{path} is a run directory; results reads sweeps "
+                             f"(directories of runs, e.g. {path.parent}); for runs: "
+                             "physrover table")  # fmt: skip
     if args.last < 1 or args.smooth < 1:
         raise UsageError("--last and --smooth must be >= 1")
     out = Path(args.out) if args.out else sweeps[0].parent / "results"

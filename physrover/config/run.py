@@ -162,6 +162,9 @@ class RunConfig:
         for name, value in overrides.items():
             table, _, field = name.rpartition(".")
             check_not_overridden(self.domain, name)
+            if table.split(".")[0] in ("agents", "pois"):  # [[agents]] / [[pois]]: lists
+                raise ConfigError(name, f"[[{table.split('.')[0]}]] tables cannot be changed "
+                                  "with --set or a sweep's grid: edit the TOML")  # fmt: skip
             if table in ("domain", *COMPONENTS):
                 domain[name] = value
             elif table == "learn":

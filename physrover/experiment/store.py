@@ -347,15 +347,18 @@ def prepare_run_dir(out: Path, config: RunConfig, header: list[str] | None = Non
 
 
 def find_runs(paths: list[str | Path]) -> list[Path]:
-    """Run directories named in ``paths``, or found below them (e.g. a sweep's root)."""
+    """Run directories named in ``paths``, or found below them (e.g. a sweep's root). A
+    file among them is passed over (a shell glob such as ``runs/sweeps/smoke/*`` also
+    matches the ``curves.csv`` an earlier call wrote there); a path that does not exist is
+    an error."""
     found: list[Path] = []
     for path in map(Path, paths):
         if (path / CONFIG).is_file():
             found.append(path)
         elif path.is_dir():
             found.extend(sorted(p.parent for p in path.rglob(CONFIG)))
-        else:
-            raise RunError(f"{path} is not a directory")
+        elif not path.exists():
+            raise RunError(f"{path} does not exist")
     return found
 
 
