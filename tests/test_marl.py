@@ -12,7 +12,9 @@ import torch
 from torch import nn
 
 from physrover.config import ConfigError, DomainConfig
+from physrover.core.registry import CREDITS
 from physrover.core.threads import pin_threads
+from physrover.domain.scoring.credit import Credit, register_credit
 from physrover.envs.gymnasium_env import RoverVectorEnv
 from physrover.learn.policies import PolicyLayout
 from physrover.marl.common import gae, run_episodes, soft_update
@@ -394,3 +396,60 @@ def test_maddpg_updates_clip_both_networks(monkeypatch):
     trainer.iteration()
     assert trainer.updates > 0 and len(seen) == 2 * trainer.updates
     assert {m for _, m in seen} == {0.5}
+
+
+# -- one credit vocabulary: any registered signal reaches the trainers -----------------------
+
+
+class _Tripled(Credit):
+    """A user's signal for the tests: three times D."""
+
+    def __call__(self, world):
+        return 3.0 * world.D
+
+
+@pytest.fixture
+def tripled():
+    register_credit("tripled-D", _Tripled())
+    yield "tripled-D"
+    del CREDITS._entries["tripled-D"]
+
+
+@pytest.mark.parametrize("reward", ["D++", "ID", "tripled"])
+def test_run_episodes_give_any_registered_credit_at_the_last_step(reward, tripled):
+    name = tripled if reward == "tripled" else reward
+    crowded = EASY.replace(n_req=2)  # D++ differs from D where a partner was missing
+    env = RoverVectorEnv(6, config=crowded)
+    env.reset(seed=5)
+    actions = np.random.default_rng(0).uniform(-1, 1, (crowded.steps, 6, 3, 2))
+    credited = run_episodes(env, lambda obs, t: actions[t].astype(np.float32), name)
+    assert not credited.rewards[:-1].any()
+    expected = CREDITS[name](env.world)
+    np.testing.assert_array_equal(credited.rewards[-1], expected.astype(np.float32))
+    if reward == "D++":
+        assert (expected != env.world.D).any()  # the check is not D again
+
+
+@pytest.mark.parametrize("make", [_mappo, _maddpg])
+def test_a_trainer_trains_on_the_credit_it_is_given(make, monkeypatch):
+    import physrover.marl.maddpg as maddpg
+    import physrover.marl.mappo as mappo
+
+    module = mappo if make is _mappo else maddpg
+    given = []
+
+    def spy(env, act, reward):
+        given.append(reward)
+        return run_episodes(env, act, reward)
+
+    monkeypatch.setattr(module, "run_episodes", spy)
+    trainer = make(reward="D++", seed=0, log_every=1000)
+    trainer.iteration()
+    assert given and set(given) == {"D++"}
+
+
+def test_an_unknown_credit_is_one_line():
+    with pytest.raises(ConfigError) as error:
+        MAPPOConfig(reward="E")
+    assert "reward: unknown credit signal 'E'" in str(error.value)
+    assert "\n" not in str(error.value)

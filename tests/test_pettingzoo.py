@@ -197,8 +197,24 @@ def test_reset_seed_reproduces_and_options_pass_through(pettingzoo):
 
 
 def test_unknown_reward_is_a_clear_error(pettingzoo):
-    with pytest.raises(ValueError, match=r"reward must be one of 'G', 'D', got 'L'"):
+    with pytest.raises(ValueError, match=r"reward: unknown credit signal 'L'.*known: D, G, D\+\+"):
         parallel_env(reward="L", **SMALL)
+
+
+# One rover on the first POI, n_req 2: D is 0 for all, D++ credits the rover on the POI.
+ALONE = {"rover_positions": [(15.0, 0.0), (0.0, 0.0), (0.0, 5.0)],
+         "rover_headings": [0.0, 0.0, 0.0]}  # fmt: skip
+
+
+def test_any_credit_signal_is_a_reward_at_the_last_step(pettingzoo):
+    from physrover.core.registry import CREDITS
+
+    env = parallel_env(reward="D++", **SMALL)
+    rewards, _, _ = _episode(env, seed=3, options=ALONE, action_seed=5)
+    assert not rewards[:-1].any()
+    expected = CREDITS["D++"](env.env.world)[0]
+    np.testing.assert_array_equal(rewards[-1], expected)
+    assert expected[0] > 0 and not env.env.world.D.any()  # D++ credits what D cannot
 
 
 def test_bad_actions_are_clear_errors(pettingzoo):

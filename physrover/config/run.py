@@ -55,6 +55,10 @@ class RunConfig:
         trainer = self.trainer if self.trainer is not None else spec.config()
         if not isinstance(trainer, spec.config):
             raise ConfigError("trainer", f"must be a {spec.config.__name__}")
+        try:  # the trainer's credit signal, defined for the domain?
+            CREDITS[trainer.reward].check(self.domain)
+        except ConfigError as exc:
+            raise ConfigError(f"{spec.config.section}.reward", exc.message) from None
         shared = {name: getattr(self.learn, name) for name in SHARED_WITH_LEARN}
         object.__setattr__(self, "trainer", trainer.replace(**shared))
 

@@ -17,7 +17,9 @@ import numpy as np
 from gymnasium import spaces
 
 from physrover.config import DomainConfig
+from physrover.core.registry import CREDITS
 from physrover.domain.agents.classes import agent_names
+from physrover.domain.scoring.credit import step_rewards
 from physrover.domain.sensing.sensor import agent_obs_sizes
 from physrover.domain.world import StartOverrides
 from physrover.envs.gymnasium_env import RoverEnv, resolve_config
@@ -28,7 +30,6 @@ except ImportError:  # optional extra; RoverParallelEnv() raises with the instal
     ParallelEnv = object
 
 MISSING_PETTINGZOO = "pettingzoo is not installed: pip install 'physrover[marl]'"
-REWARDS = ("G", "D")  # the credit signals ``reward=`` accepts (see RoverParallelEnv)
 
 
 def _require_pettingzoo() -> None:
@@ -75,7 +76,8 @@ class RoverParallelEnv(ParallelEnv):
     step's reward also includes a capture at reset), so each agent's rewards of an episode
     sum to its G. ``reward="D"``: each agent gets its rover's difference evaluation
     D_i = G - G(without rover i) (Eq. 1) at the last step and 0 before, so its rewards sum
-    to D_i.
+    to D_i; any other credit signal the CCEA takes (``"D++"``, ``"ID"``, a registered one:
+    :mod:`physrover.domain.scoring.credit`) likewise.
 
     ## Starting State
     As ``RoverEnv``: ``reset(seed=s)`` seeds it like a gymnasium env (same seed, same
@@ -120,14 +122,14 @@ class RoverParallelEnv(ParallelEnv):
         **fields: Any,
     ):
         _require_pettingzoo()
-        if reward not in REWARDS:
-            allowed = ", ".join(map(repr, REWARDS))
-            raise ValueError(f"reward must be one of {allowed}, got {reward!r}")
+        if reward not in CREDITS:
+            raise ValueError(f"reward: {CREDITS.unknown_message(reward)}")
         self.reward = reward
         self.env = RoverEnv(
             resolve_config(config, fields), render_mode=render_mode, render_config=render_config
         )
         self.config = self.env.config
+        CREDITS[reward].check(self.config)  # defined for this domain?
         self.render_mode = render_mode
         team_obs = self.env.observation_space  # (R, n_obs), bounds from the sensor
         self.possible_agents = agent_names(self.config)  # CLASS_j with [[agents]]
@@ -221,12 +223,8 @@ class RoverParallelEnv(ParallelEnv):
             raise RuntimeError("no live agents (the episode is over or never began): reset()")
         obs, reward, _, truncated, info = self.env.step(self._team_action(actions))
         observations, infos = self._split(obs, info)
-        if self.reward == "G":
-            rewards = dict.fromkeys(self.agents, float(reward))
-        elif truncated:
-            rewards = {agent: float(d) for agent, d in zip(self.agents, info["D"], strict=True)}
-        else:
-            rewards = dict.fromkeys(self.agents, 0.0)
+        credit = step_rewards(self.reward, self.env.world, bool(truncated), np.array([reward]))
+        rewards = {agent: float(r) for agent, r in zip(self.agents, credit[0], strict=True)}
         terminations = dict.fromkeys(self.agents, False)
         truncations = dict.fromkeys(self.agents, bool(truncated))
         if truncated:

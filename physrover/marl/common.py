@@ -24,8 +24,9 @@ import torch
 from torch import nn
 
 from physrover.config import DomainConfig
+from physrover.domain.scoring.credit import step_rewards
 from physrover.envs.gymnasium_env import RoverVectorEnv, team_spaces
-from physrover.marl.configs import REWARDS, MARLConfig  # noqa: F401  (re-exported)
+from physrover.marl.configs import MARLConfig  # noqa: F401  (re-exported)
 
 # ----------------------------------------------------------------------------------------------
 # Seeding and networks
@@ -140,7 +141,8 @@ class Episodes:
     obs: np.ndarray
     """(T + 1, E, R, n_obs) float32: observation before each step, then the final one."""
     rewards: np.ndarray
-    """(T, E, R) float32: each rover's reward of each step (:data:`REWARDS`)."""
+    """(T, E, R) float32: each rover's reward of each step
+    (:func:`~physrover.domain.scoring.credit.step_rewards`)."""
     G: np.ndarray
     """(E,) the team score G at the end of each episode."""
 
@@ -155,7 +157,8 @@ def run_episodes(
     Args:
         env: the vector env; its generators continue from their state (fresh episodes).
         act: ``act(obs (E, R, n_obs), t) -> actions (E, R, 2)`` at step t = 0..T-1.
-        reward: "G" or "D", the rewards returned (see :data:`REWARDS`).
+        reward: the credit signal of the rewards returned, "G" or a registered one
+            (:func:`~physrover.domain.scoring.credit.step_rewards`).
     """
     steps = env.config.steps
     obs, _ = env.reset()
@@ -165,10 +168,7 @@ def run_episodes(
     for t in range(steps):
         obs, team_reward, _, _, infos = env.step(act(obs, t))
         all_obs[t + 1] = obs
-        if reward == "G":
-            rewards[t] = team_reward[:, None]
-        elif t == steps - 1:
-            rewards[t] = infos["D"]
+        rewards[t] = step_rewards(reward, env.world, t == steps - 1, team_reward)
     return Episodes(all_obs, rewards, np.asarray(infos["G"], dtype=np.float64).copy())
 
 

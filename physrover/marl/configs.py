@@ -14,13 +14,7 @@ import math
 from typing import ClassVar
 
 from physrover.config import COMPONENTS, ConfigBase, check, check_choice
-from physrover.core.registry import FITNESS_METHODS, TRAINERS
-
-REWARDS = ("G", "D")
-"""Credit signals a baseline trains on: "G" every rover gets the team's increase of G at each
-step (its rewards sum to G); "D" each rover gets its difference evaluation D_i (Eq. 1) at the
-last step and 0 before (its rewards sum to D_i)."""
-
+from physrover.core.registry import CREDITS, FITNESS_METHODS, TRAINERS
 
 # ----------------------------------------------------------------------------------------------
 # Config
@@ -43,8 +37,12 @@ class MARLConfig(ConfigBase):
     """Hidden units of each rover's policy, n_obs -> hidden -> 2 (ReLU, then tanh), the
     CCEA's policy shape, so a trained actor exports as a CCEA genome."""
     reward: str = "G"
-    """Credit signal: "G" (team reward at every step) or "D" (each rover's difference
-    evaluation at the last step); see :data:`REWARDS`."""
+    """Credit signal, by the CCEA's names (``[learn] feedback``, the
+    :data:`~physrover.core.registry.CREDITS` registry): "G" every rover gets the team's
+    increase of G at each step (its rewards sum to G); any other ("D", "D++", "ID",
+    "ID-step", a registered one) each rover gets its signal for the episode at the last
+    step and 0 before (its rewards sum to it;
+    :func:`~physrover.domain.scoring.credit.step_rewards`)."""
     time_feature: bool = True
     """Give the critics the elapsed fraction of the episode, t / steps, as an extra input:
     episodes end at a fixed step, so without it values are not a function of their input
@@ -65,7 +63,7 @@ class MARLConfig(ConfigBase):
             "checkpoint_every",
         )  # fmt: skip
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
-        check_choice(self.reward, REWARDS, "reward")
+        check(self.reward in CREDITS, "reward", CREDITS.unknown_message(self.reward))
 
     @property
     def total_iterations(self) -> int:

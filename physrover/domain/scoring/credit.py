@@ -13,6 +13,10 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
 - ``"ID"``, ``"ID-step"``: IndirectDifference (:mod:`physrover.domain.scoring.influence`),
   which credits an agent (a UAV) with the captures of the agents it was near.
 
+The gradient-based trainers and the PettingZoo env take the same names (``reward``):
+:func:`step_rewards` gives the signal at an episode's last step ("G" stays the team's
+increase of G at every step).
+
 A new signal is a :class:`Credit` subclass (a ``__call__(world) -> (E, R)``) and one
 :func:`register_credit` call, from any module; its name then works in TOML and
 ``--set feedback=NAME``. It reads the world after the episode: ``world.G`` (E,),
@@ -82,6 +86,21 @@ class IndirectDifference(Credit):
 
     def __call__(self, world) -> np.ndarray:
         return indirect_difference(world, self.timescale)
+
+
+def step_rewards(name: str, world, last_step: bool, team_reward: np.ndarray) -> np.ndarray:
+    """Each rover's reward of one step for a per-step learner (MAPPO, MADDPG, the PettingZoo
+    env) under the credit signal ``name``: "G" is the team's increase of G at every step
+    (``team_reward`` (E,), the env's reward: each rover's rewards sum to G, a dense
+    signal); any other registered signal (:data:`~physrover.core.registry.CREDITS`: D,
+    D++, ID, a user's) is the signal of the episode ``world`` just played, at its last step
+    (``last_step``), and 0 before, so each rover's rewards sum to it. Returns (E, R)."""
+    if name == "G":
+        return np.repeat(np.asarray(team_reward, dtype=np.float64)[:, None], world.n_rovers,
+                         axis=1)  # fmt: skip
+    if not last_step:
+        return np.zeros((world.n_teams, world.n_rovers))
+    return np.asarray(CREDITS[name](world), dtype=np.float64)
 
 
 def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Credit:
