@@ -223,13 +223,18 @@ def kill_loop(out: Path, kills: int, seed: int, generations: int) -> dict:
 
     assert _status(_child(uninterrupted)) == "exit 0"
     landed, lives, start = [], 0, time.monotonic()
+    window = 0.12  # seconds; longer while the kills find the run where the last one left it
     while len(landed) < kills:
         lives += 1
         pid = _child(work)
-        time.sleep(rng.uniform(0.0, 0.12))
+        time.sleep(rng.uniform(0.0, window))
         os.kill(pid, signal.SIGKILL)
         if _status(pid) == "SIGKILL":
             landed.append(store.last_checkpoint(out))
+            # a loaded machine (another test, a sweep) starts and steps the child slower:
+            # widen the window until the kills move along the run again
+            stuck = len(landed) > 1 and landed[-1] == landed[-2]
+            window = min(window * 1.5, 2.0) if stuck else max(window / 1.5, 0.12)
         if lives > 10 * kills:
             raise RuntimeError(f"only {len(landed)} kills landed in {lives} lives")
     last = _status(_child(work))

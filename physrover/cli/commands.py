@@ -16,6 +16,7 @@ from pathlib import Path
 from physrover.config import RunConfig, parse_override
 from physrover.core.registry import FITNESS_METHODS
 from physrover.core.threads import pin_threads
+from physrover.experiment.claims import check_free
 from physrover.experiment.loop import TensorBoardLog
 from physrover.experiment.store import last_checkpoint, load_run_config
 
@@ -142,6 +143,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             return 0
         if args.tensorboard:
             TensorBoardLog.check_installed()
+        check_free(out)  # another process training it: say so, not "resuming"
         start = f"from {config.unit} {done}" if done is not None else "from the start (no " \
             "checkpoint yet)"  # fmt: skip
         print(f"resuming {out} {start} to {config.length}", file=sys.stderr)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
-import shutil
 import signal
 import sys
 import threading
@@ -25,14 +24,25 @@ from physrover.config import ConfigError, RunConfig
 from physrover.core import plugins
 from physrover.core.progress import Progress
 from physrover.core.threads import pin_threads
-from physrover.experiment.store import drop_state
+from physrover.experiment.claims import HeldRun, RunHeld, claim, holder
+from physrover.experiment.store import clear_run_dir, drop_state
 from physrover.experiment.sweep import RunSpec, run_status
+
+HELD_POLL = 1.0
+"""Seconds between a driver's looks at the runs other processes hold."""
+
+
+class AlreadyDone(str):
+    """:func:`run_one`'s answer for a run found finished once claimed (another driver of
+    the sweep trained it since this one listed it): not an error."""
 
 
 def run_one(spec: RunSpec) -> tuple[str, float, str | None]:
     """Train (or resume) one run; returns (name, seconds, error or None). A run's error is
-    returned, not raised; a stop of the sweep (:func:`_run_pool`) raises KeyboardInterrupt,
-    before the run starts if it came first."""
+    returned, not raised; a run another process holds (another driver of the sweep,
+    :mod:`physrover.experiment.claims`) returns a :class:`HeldRun` naming it, untouched;
+    a stop of the sweep (:func:`_run_pool`) raises KeyboardInterrupt, before the run starts
+    if it came first."""
     from physrover.experiment import stops
 
     if stops._stop_event is not None and stops._stop_event.is_set():
@@ -43,24 +53,27 @@ def run_one(spec: RunSpec) -> tuple[str, float, str | None]:
         plugins.load_from_environment()  # a spawned or Ray worker: the parts the runs name
         from physrover.experiment.training import train
 
-        status = run_status(spec)
-        if status != "done":
-            config = RunConfig.from_toml(spec.config_toml)
-            out = Path(spec.out)
-            if status == "partial":
-                if not (out / "config.toml").exists():  # died before writing anything useful
-                    shutil.rmtree(out)
+        out = Path(spec.out)
+        with claim(out):  # the status is read under the claim: another driver may train it
+            status = run_status(spec)
+            if status == "done":  # finished by another driver since this one listed it
+                result = AlreadyDone(spec.name)
+            else:
+                result = None
+                config = RunConfig.from_toml(spec.config_toml)
+                if not (out / "config.toml").exists():  # new, or died before writing it
+                    clear_run_dir(out)
                     train(config, out, progress=False)
                 else:
                     # up to the sweep's length, in the learner's unit (a trainer's runs
                     # count iterations)
                     length = {f"{config.unit}s": config.length}
                     train(None, out, resume=True, progress=False, **length)
-            else:
-                train(config, out, progress=False)
-        if spec.drop_state:
-            drop_state(Path(spec.out))
-        return spec.name, time.perf_counter() - start, None
+            if spec.drop_state:
+                drop_state(out)
+        return spec.name, time.perf_counter() - start, result
+    except RunHeld as held:
+        return spec.name, time.perf_counter() - start, HeldRun(str(held))
     except Exception as exc:  # a crashed run is reported, the others go on
         detail = "".join(traceback.format_exception_only(type(exc), exc)).strip()
         return spec.name, time.perf_counter() - start, detail
@@ -94,24 +107,50 @@ def run_sweep(
     bar = Progress(len(specs), label="sweep runs", start=skipped, unit="run") if progress else None
     finished: list[str] = []
     failed: dict[str, str] = {}
+    held: dict[str, str] = {}  # runs other processes hold: name -> who
+    elsewhere: list[str] = []  # runs another driver finished meanwhile
 
     def record(result: tuple[str, float, str | None]) -> None:
         name, _, error = result
-        if error is None:
+        if isinstance(error, HeldRun):
+            held[name] = error
+        elif isinstance(error, AlreadyDone):
+            elsewhere.append(name)
+        elif error is None:
             finished.append(name)
         else:
             failed[name] = error
             print(f"\nrun failed: {name}: {error}", file=sys.stderr)
 
     workers = workers or max(1, (os.cpu_count() or 1))
-    if todo and ray_address:
-        _run_ray(todo, ray_address, record, bar, skipped, workers)
-    elif todo:
-        _run_pool(todo, workers, record, bar, skipped, finished, failed)
+    by_name = {spec.name: spec for spec in todo}
+    while todo:
+        held.clear()
+        if ray_address:
+            _run_ray(todo, ray_address, record, bar, skipped, workers)
+        else:
+            _run_pool(todo, workers, record, bar, skipped, finished, failed)
+        todo = _released([by_name[name] for name in held], held)
     _display(bar, len(specs), 0, len(failed))
     if bar:
         bar.close()
-    return SweepReport(len(specs), skipped, finished, failed, time.perf_counter() - start)
+    return SweepReport(len(specs), skipped + len(elsewhere), finished, failed,
+                       time.perf_counter() - start)  # fmt: skip
+
+
+def _released(waiting: list[RunSpec], held: dict[str, str]) -> list[RunSpec]:
+    """``waiting``, the runs other processes held (``held`` names who), once one of them is
+    released, whether its holder finished it or died (:mod:`physrover.experiment.claims`):
+    a driver waits for the others, so every driver of a sweep ends when all its runs are
+    done, and takes over the runs of a driver that died. Empty if none waits."""
+    if not waiting:
+        return []
+    first = next(iter(held.values()))
+    print(f"\nwaiting for {len(waiting)} run(s) other processes hold ({first})",
+          file=sys.stderr)  # fmt: skip
+    while all(holder(Path(spec.out)) is not None for spec in waiting):
+        time.sleep(HELD_POLL)
+    return waiting
 
 
 def _run_pool(todo, workers, record, bar, skipped, finished, failed) -> None:

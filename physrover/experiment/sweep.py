@@ -43,6 +43,7 @@ from typing import Any
 
 from physrover.config import ConfigError, RunConfig, load_toml_file, naming_file
 from physrover.core import plugins
+from physrover.experiment.claims import holder
 from physrover.experiment.store import last_checkpoint
 
 
@@ -237,7 +238,8 @@ def run_progress(spec: RunSpec) -> tuple[str, int, int]:
 
 def status_report(name: str, specs: list[RunSpec], listed: int = 0) -> list[str]:
     """``physrover sweep FILE --status``: a line per run that is not done (its status and
-    checkpointed generations of its length, then its directory), and a last line counting
+    checkpointed generations of its length, then its directory and, while a process trains
+    it, which: :mod:`physrover.experiment.claims`), and a last line counting
     done, partial and new runs, the share of their generations that is checkpointed, and
     the ``listed`` runs that ``--skip-listed`` left out."""
     counts = {"done": 0, "partial": 0, "new": 0}
@@ -247,7 +249,9 @@ def status_report(name: str, specs: list[RunSpec], listed: int = 0) -> list[str]
         counts[status] += 1
         reached, total = reached + min(generation, length), total + length
         if status != "done":
-            lines.append(f"{status:7s} {generation:>7d}/{length:<7d} {spec.out}")
+            who = holder(Path(spec.out)) if status == "partial" else None
+            by = f"  (pid {who['pid']} on {who['host']})" if who else ""
+            lines.append(f"{status:7s} {generation:>7d}/{length:<7d} {spec.out}{by}")
     share = 100.0 * reached / total if total else 100.0
     summary = ", ".join(f"{n} {s}" for s, n in counts.items())
     summary += f"; {share:.1f}% of their generations checkpointed"

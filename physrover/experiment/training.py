@@ -12,6 +12,7 @@ from pathlib import Path
 
 from physrover.config import ConfigError, RunConfig
 from physrover.core.progress import Progress
+from physrover.experiment.claims import claim
 from physrover.experiment.loop import TensorBoardLog, write_rows
 from physrover.experiment.store import (
     CONFIG,
@@ -54,19 +55,32 @@ def train(
     last checkpoint (dropping metrics rows written after it) up to that length. With
     ``tensorboard``, every metrics row is also written as TensorBoard scalars under
     ``out/tensorboard`` (needs ``pip install 'physrover[tensorboard]'``, checked first).
+
+    The run is claimed while it trains (:mod:`physrover.experiment.claims`): another
+    process training ``out`` raises :class:`~physrover.experiment.claims.RunHeld` at once,
+    naming it.
     """
     out = Path(out)
     if resume:
         config = load_run_config(out)
     elif config is None:
         raise ConfigError("config", "a config is needed to start a run")
+    lengthened = False
     for unit, n in (("generation", generations), ("iteration", iterations)):
         if n is not None and (unit != config.unit or n != config.length):
             config = config.with_length(n, unit)
-            if resume:
-                atomic_write(out / CONFIG, config.to_toml())
+            lengthened = True
     if tensorboard:
         TensorBoardLog.check_installed()
+    with claim(out):  # one process trains a run at a time (physrover.experiment.claims)
+        if resume and lengthened:
+            atomic_write(out / CONFIG, config.to_toml())
+        return _train_claimed(config, out, resume, progress, tensorboard, on_generation)
+
+
+def _train_claimed(config: RunConfig, out: Path, resume: bool, progress: bool,
+                   tensorboard: bool, on_generation) -> Path:  # fmt: skip
+    """:func:`train` once the run is claimed."""
     if config.trainer is not None:  # a gradient-based baseline, not the CCEA
         from physrover.experiment.trainer_runs import train_trainer
 
