@@ -1,10 +1,17 @@
 """Shared test helpers."""
 
 import json
+import os
 
 import numpy as np
 
 from physrover.experiment.store import read_metrics
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto`` (the README's test command): a worker per core, at most 4 (each imports
+    torch and compiles or loads the kernels; more contend for the kernel cache and memory)."""
+    return min(4, os.cpu_count() or 1)
 
 
 def comparable_rows(rows):

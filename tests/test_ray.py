@@ -30,6 +30,10 @@ from physrover.experiment.execute import run_sweep
 from physrover.experiment.store import read_metrics
 from physrover.experiment.sweep import Sweep
 
+# Under pytest-xdist (the README's test command) every test that starts Ray runs on one
+# worker (--dist loadgroup): two Ray instances at once would share this machine's ports.
+pytestmark = pytest.mark.xdist_group("ray")
+
 ray = pytest.importorskip("ray")
 
 

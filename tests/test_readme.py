@@ -16,9 +16,10 @@ def test_the_two_commands_install_and_run_the_demo_and_the_tests():
     first, second = re.findall(r"```bash\n(.*?)\n```", README, re.S)[:2]
     assert first.endswith("pip install -e . && physrover demo")
     assert "torch==" in first  # the CPU build before anything pulls a CUDA one
-    assert second.endswith('pip install -e ".[test]" && python -m pytest -q')
+    command = "python -m pytest -q -n auto --dist loadgroup"  # on every core (pytest-xdist)
+    assert second.endswith(f'pip install -e ".[test]" && {command}')
     ci = (ROOT / ".ci" / "run").read_text()
-    assert "python -m pytest -q" in ci and 'pip install --quiet -e ".[test' in ci
+    assert f"\n{command}\n" in ci and 'pip install --quiet -e ".[test' in ci
 
 
 def test_links_point_at_files():

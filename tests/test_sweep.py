@@ -90,6 +90,7 @@ def test_bad_sweep_files(tmp_path):
         _sweep(tmp_path, SWEEP.replace('method = ["D", "max-critic"]', 'method = "D"'))
 
 
+@pytest.mark.xdist_group("ray")  # one worker starts Ray at a time (test_ray.py)
 def test_pool_and_ray_give_the_same_metrics(tmp_path):
     pytest.importorskip("ray")
     sweep = _sweep(tmp_path)
