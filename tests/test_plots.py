@@ -287,6 +287,24 @@ def test_a_whole_number_field_gets_whole_ticks(tmp_path, figures):
     assert ticks == [3, 4]  # before: 3.0, 3.2, 3.4, ...
 
 
+def test_a_short_run_gets_whole_generation_ticks(tmp_path, figures):
+    runs = [_fake_run(tmp_path, "a", "D", 3, [1.0, 2.0, 2.0, 3.0, 1.0])]
+    plots.make_curves(runs, tmp_path / "short.png")
+    ticks = [t for t in figures[0].axes[0].get_xticks() if 1 <= t <= 5]
+    assert ticks and all(t == round(t) for t in ticks)  # before: 1.0, 1.5, 2.0, ...
+
+
+def test_the_demo_legend_stays_inside_the_axes(tmp_path, figures):
+    # One run, smoothed: "max-critic (n=1, 20-generation moving mean)" and "max G". Put
+    # beside the axes, it widened the figure by a third of white.
+    runs = [_fake_run(tmp_path, "demo", "max-critic", 3, [float(g % 7) for g in range(40)])]
+    plots.make_curves(runs, tmp_path / "demo.png", smooth=20)
+    fig = figures[0]
+    assert max(map(len, _legend(fig))) == len("max-critic (n=1, 20-generation moving mean)")
+    legend, axes = fig.axes[0].get_legend().get_window_extent(), fig.axes[0].get_window_extent()
+    assert legend.x1 <= axes.x1 and tuple(fig.get_size_inches()) == (6.4, 4.2)
+
+
 def test_many_groups_keep_apart_and_keep_off_the_curves(tmp_path, figures):
     runs = [_fake_run(tmp_path, f"r{i}", "D", 3, [float(i)], poi_ring_radius=10.0 + i)
             for i in range(12)]  # fmt: skip

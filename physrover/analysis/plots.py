@@ -109,14 +109,20 @@ def _max_g_lines(ax, table: dict) -> None:
         ax.axhline(v, color="0.4", linestyle="--", linewidth=1, label=label)
 
 
+LEGEND_INSIDE_CHARS = 56
+"""The longest legend entry kept inside the axes (8 points on the 6.4-inch figure): the
+demo's ``max-critic (n=1, 20-generation moving mean)``, 44, fits, with room for a method's
+feedback or a varied field."""
+
+
 def _finish(fig, ax, plt, out: Path) -> None:
     """Legend, layout, save to ``out`` (creating its directory), close. More than five
-    entries, or one longer than 40 characters (which inside the axes would run past the
-    figure's edge), go beside the axes, the figure widened by the longest entry (about
+    entries, or one longer than :data:`LEGEND_INSIDE_CHARS` (which inside the axes would
+    run past the figure's edge), go beside the axes, the figure widened by the longest entry (about
     0.05 inch a character at 7 points), so the legend neither covers a curve nor squeezes
     the axes."""
     labels = ax.get_legend_handles_labels()[1]
-    if len(labels) > 5 or max(map(len, labels), default=0) > 40:
+    if len(labels) > 5 or max(map(len, labels), default=0) > LEGEND_INSIDE_CHARS:
         fig.set_size_inches(6.4 + max(2.6, 0.05 * max(map(len, labels))), 4.2)
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     else:
@@ -157,6 +163,9 @@ def plot_curves(table: dict, out: Path, title: str = "", x: str = "generation") 
             low, high = band(cols["mean"], cols["ci"], cols.get("g_max", math.inf))
             ax.fill_between(cols[x], low, high, color=line.get_color(), alpha=0.2)
     _max_g_lines(ax, table)
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # generations, episodes: whole
     ax.set_xlabel("Generation" if x == "generation" else "Training episodes")
     _finish(fig, ax, plt, out)
     write_csv(table, out.with_suffix(".csv"), "generation")
