@@ -114,3 +114,95 @@ def test_errors_are_one_line(tmp_path, capsys):
         f"physrover: error: {tmp_path / 'empty'}: no finished run (nor earlier rows of sweep "
         "empty)",
     ]
+
+
+COMPARED = (
+    SWEEP.replace('"fig8-9-paper"', '"grid"')
+    + """
+[[comparisons]]
+a = { method = "max-critic" }
+b = { method = "D" }
+
+[[comparisons]]
+a = { n_rovers = 4 }
+b = { n_rovers = 3 }
+"""
+)
+
+
+def test_planned_comparisons_of_the_sweep_file_with_holm_over_all(tmp_path, capsys):
+    from physrover.analysis.tables import compare_samples
+    from physrover.core.stats import holm
+
+    path = tmp_path / "grid.toml"
+    path.write_text(COMPARED)
+    sweep = Sweep.load(path)
+    _fake_runs(sweep, tmp_path / "root", None)  # final G = seed + n_rovers / 10 (+ 5: critic)
+    sweep.write_copy(tmp_path / "root", COMPARED)  # what physrover sweep keeps
+    _results(tmp_path / "root", tmp_path / "out")
+    rows = _rows(tmp_path / "out" / "grid_significance.csv")
+    assert [(r["cell"], r["A"], r["B"]) for r in rows] == [
+        ("n_rovers=3", "method=max-critic", "method=D"),
+        ("n_rovers=4", "method=max-critic", "method=D"),
+        ("method=D", "n_rovers=4", "n_rovers=3"),
+        ("method=max-critic", "n_rovers=4", "n_rovers=3"),
+    ]
+    seeds = [0, 1, 2, 3]
+    expected = [compare_samples([s + 0.3 + 5 for s in seeds], [s + 0.3 for s in seeds]),
+                compare_samples([s + 0.4 + 5 for s in seeds], [s + 0.4 for s in seeds]),
+                compare_samples([s + 0.4 for s in seeds], [s + 0.3 for s in seeds]),
+                compare_samples([s + 5.4 for s in seeds], [s + 5.3 for s in seeds])]  # fmt: skip
+    adjusted = holm([e["p_permutation"] for e in expected])
+    for row, want, p in zip(rows, expected, adjusted, strict=True):
+        assert float(row["mean_A"]) == pytest.approx(want["mean_A"])
+        assert float(row["p_permutation"]) == pytest.approx(want["p_permutation"])
+        assert float(row["p_holm"]) == pytest.approx(p) and row["family_size"] == "4"
+    text = (tmp_path / "out" / "grid_significance.md").read_text()
+    assert "| n_rovers=3 | method=max-critic | method=D | 4/4 |" in text
+    assert "grid: 4 planned comparisons (Holm over all)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ('[[comparisons]]\na = { method = "D" }\n', "comparisons[0]: needs exactly a and b"),
+        ('[[comparisons]]\na = { method = "D" }\nb = { method = "D" }\n', "pick the same runs"),
+        ('[[comparisons]]\na = { methd = "D" }\nb = { method = "G" }\n', "methd: unknown"),
+        ('[[comparisons]]\na = {}\nb = { method = "G" }\n', "comparisons[0].a: must be a"),
+    ],
+)
+def test_a_bad_comparison_is_a_one_line_error(tmp_path, table, message):
+    from physrover.config import ConfigError
+
+    path = tmp_path / "bad.toml"
+    path.write_text(SWEEP + table)
+    with pytest.raises(ConfigError) as error:
+        Sweep.load(path)
+    assert message in str(error.value) and "\n" not in str(error.value)
+
+
+def test_a_sweep_keeps_a_copy_of_its_file_for_results(tmp_path):
+    text = """
+[sweep]
+name = "kept"
+[base.domain]
+n_rovers = 3
+n_req = 1
+steps = 5
+[base.learn]
+generations = 1
+population = 4
+eval_episodes = 1
+[grid]
+method = ["D", "G"]
+[[comparisons]]
+a = { method = "D" }
+b = { method = "G" }
+"""
+    path = tmp_path / "kept.toml"
+    path.write_text(text)
+    assert main(["sweep", str(path), "--root", str(tmp_path / "root"), "--workers", "1"]) == 0
+    assert (tmp_path / "root" / "kept" / "sweep.toml").read_text() == text
+    assert Sweep.load(tmp_path / "root" / "kept" / "sweep.toml").comparisons == (
+        {"a": {"method": "D"}, "b": {"method": "G"}},
+    )

@@ -9,6 +9,9 @@ For each sweep directory (``ROOT/NAME``, as ``physrover sweep`` makes it) this w
   ``wall_seconds``, and the ``code`` and ``cpu`` that trained it (:func:`provenance_columns`);
 - ``cells.md`` and ``cells.csv``: per sweep and cell of its grid, the final G's mean and
   Student-t 95% CI over seeds and their number;
+- ``NAME_significance.md`` and ``.csv``: the planned comparisons of the sweep's file
+  (``[[comparisons]]``, read from the copy ``physrover sweep`` keeps in the sweep's folder;
+  :mod:`physrover.analysis.comparisons`), Holm over all of them;
 - ``NAME_curves.png`` (learning curves, a group per cell; ``smooth``-generation moving
   mean) and, for each numeric grid field F that some cell of the other fields has two
   values of, ``NAME_final_vs_F.png`` (final score against F, a group per cell of the
@@ -197,6 +200,29 @@ def figures(result: SweepResults, out: Path, last: int, smooth: int) -> list[Pat
     return made
 
 
+def _planned(sweep_dir: Path, result: SweepResults, out: Path) -> list[str]:
+    """The sweep's planned comparisons (``[[comparisons]]`` of the copy of its file in its
+    folder, :mod:`physrover.analysis.comparisons`) as ``NAME_significance.csv`` and
+    ``.md`` in ``out``; the messages to show."""
+    from physrover.analysis.comparisons import COLUMNS, planned_comparisons
+    from physrover.analysis.tables import comparisons_markdown, write_csv
+    from physrover.experiment.sweep import SWEEP_COPY, Sweep
+
+    copy = sweep_dir / SWEEP_COPY
+    if not copy.is_file():
+        return []
+    sweep = Sweep.load(copy)
+    if not sweep.comparisons:
+        return []
+    rows, skipped = planned_comparisons(result.rows, sweep.comparisons, sweep.base)
+    if not rows:
+        return [*skipped, f"{result.name}: no planned comparison has 2 runs a side yet"]
+    path = write_csv(rows, COLUMNS, out / f"{result.name}_significance.csv")
+    path.with_suffix(".md").write_text(comparisons_markdown(rows))
+    return [*skipped, f"{result.name}: {len(rows)} planned comparisons (Holm over all) in "
+            f"{path.with_suffix('.md')}"]  # fmt: skip
+
+
 def read_rows(path: Path) -> list[dict]:
     """The rows of a runs.csv ([] if there is none)."""
     if not Path(path).is_file():
@@ -235,6 +261,8 @@ def write_results(sweep_dirs: list[Path], out: Path, last: int = 50,
         if result.kept:
             messages.append(f"{result.name}: {result.kept} finished runs of earlier machines "
                             f"pooled from {out / 'runs.csv'}")  # fmt: skip
+    for path, result in zip(sweep_dirs, results, strict=True):
+        messages += _planned(Path(path), result, out)
     (out / "cells.md").write_text("".join(sections))
     with open(out / "cells.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=CELL_COLUMNS)

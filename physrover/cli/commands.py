@@ -322,7 +322,7 @@ def _seeds(text: str | None) -> int | range | None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from physrover.experiment.execute import run_sweep
-    from physrover.experiment.sweep import Sweep
+    from physrover.experiment.sweep import Sweep, resolve_sweep_file
 
     sweep = Sweep.load(args.sweep_file).with_overrides(
         dict(parse_override(text) for text in args.set or [])
@@ -346,6 +346,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             print(spec.out)
         return 0
     print(f"sweep {sweep.name}: {len(specs)} runs under {Path(args.root) / sweep.name}")
+    sweep.write_copy(args.root, resolve_sweep_file(args.sweep_file).read_text())
     try:
         report = run_sweep(specs, workers=args.workers, ray_address=args.ray)
     except KeyboardInterrupt:

@@ -32,15 +32,13 @@ import errno
 import fcntl
 import json
 import os
+import shutil
 import socket
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from physrover.experiment.store import RunError
-
-CLAIM = ".claim"
-"""The claim file of a run directory."""
+from physrover.experiment.store import CLAIM, RunError
 
 _held: dict[str, tuple[int, int]] = {}
 """The claims this process holds: run directory -> (file descriptor, depth)."""
@@ -141,4 +139,22 @@ def claim(run_dir: Path) -> Iterator[None]:
         os.close(fd)
 
 
-__all__ = ["CLAIM", "HeldRun", "RunHeld", "check_free", "claim", "holder", "holder_line"]
+def clear_run_dir(out: Path) -> None:
+    """Empty a run directory that died before its config was written, keeping its claim
+    (deleting a claimed file would let another process claim a new one)."""
+    for path in Path(out).iterdir():
+        if path.name == CLAIM:
+            continue
+        shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+
+
+__all__ = [
+    "CLAIM",
+    "clear_run_dir",
+    "HeldRun",
+    "RunHeld",
+    "check_free",
+    "claim",
+    "holder",
+    "holder_line",
+]

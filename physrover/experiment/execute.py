@@ -24,8 +24,8 @@ from physrover.config import ConfigError, RunConfig
 from physrover.core import plugins
 from physrover.core.progress import Progress
 from physrover.core.threads import pin_threads
-from physrover.experiment.claims import HeldRun, RunHeld, claim, holder
-from physrover.experiment.store import clear_run_dir, drop_state
+from physrover.experiment.claims import HeldRun, RunHeld, claim, clear_run_dir, holder
+from physrover.experiment.store import drop_state
 from physrover.experiment.sweep import RunSpec, run_status
 
 HELD_POLL = 1.0

@@ -52,6 +52,7 @@ CONFIG, METRICS, STATE_NPZ, STATE_PREV, STATE_JSON, CHAMPIONS = (
 )
 META_KEY = "__meta__"
 """state.npz's entry holding the checkpoint's metadata: its JSON text as uint8 bytes."""
+CLAIM = ".claim"  # the file a process locks while it trains the run (experiment.claims)
 
 
 class RunError(Exception):
@@ -339,28 +340,12 @@ def format_value(value: float) -> str:
 
 
 def prepare_run_dir(out: Path, config: RunConfig, header: list[str] | None = None) -> None:
-    """A new run directory with its config and an empty metrics.csv; refused if ``out``
-    holds anything but its claim (:mod:`physrover.experiment.claims`)."""
-    from physrover.experiment.claims import CLAIM
-
+    """A new run: config and empty metrics.csv; refused if ``out`` holds more than a claim."""
     if out.exists() and (not out.is_dir() or any(p.name != CLAIM for p in out.iterdir())):
         raise RunError(f"{out} exists and is not empty; use --resume {out} to continue it")
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / CONFIG, config.to_toml())
     write_metrics(out / METRICS, [], header)
-
-
-def clear_run_dir(out: Path) -> None:
-    """Empty a run directory that died before its config was written, keeping its claim
-    (deleting a claimed file would let another process claim a new one)."""
-    import shutil
-
-    from physrover.experiment.claims import CLAIM
-
-    for path in Path(out).iterdir():
-        if path.name == CLAIM:
-            continue
-        shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
 
 
 def find_runs(paths: list[str | Path]) -> list[Path]:

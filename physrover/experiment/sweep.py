@@ -68,6 +68,9 @@ class Sweep:
     """[sweep] imports: modules or .py files (relative to the sweep file) of the researcher's
     own parts that the runs name, imported when the file is loaded and by every worker
     (:mod:`physrover.core.plugins`)."""
+    comparisons: tuple[dict[str, dict[str, Any]], ...] = ()
+    """``[[comparisons]]``: the planned comparisons ``physrover results`` tests, each
+    ``{"a": {field: value}, "b": {field: value}}`` (:mod:`physrover.analysis.comparisons`)."""
 
     @classmethod
     def load(cls, path: str | Path) -> Sweep:
@@ -80,11 +83,10 @@ class Sweep:
 
     @classmethod
     def _from_dict(cls, data: dict, path: str | Path) -> Sweep:
-        unknown = sorted(set(data) - {"sweep", "base", "grid", "variants"})
+        tables = ("sweep", "base", "grid", "variants", "comparisons")
+        unknown = sorted(set(data) - set(tables))
         if unknown:
-            raise ConfigError(
-                unknown[0], "unknown sweep table (known: sweep, base, grid, variants)"
-            )
+            raise ConfigError(unknown[0], f"unknown sweep table (known: {', '.join(tables)})")
         meta = data.get("sweep", {})
         bad = sorted(set(meta) - {"name", "seeds", "imports"})
         if bad:
@@ -109,7 +111,24 @@ class Sweep:
             for variant in variants:
                 base.with_overrides({**dict(point), **variant})
         name = str(meta.get("name", Path(path).stem))
-        return cls(name, base, grid, seeds, variants, tuple(imports))
+        runs = [
+            {**dict(point), **variant}
+            for point in itertools.product(
+                *([(f, v) for v in values] for f, values in grid.items())
+            )
+            for variant in variants
+        ]
+        comparisons = _comparisons(data.get("comparisons", []), base, runs)
+        return cls(name, base, grid, seeds, variants, tuple(imports), comparisons)
+
+    def write_copy(self, root: str | Path, text: str) -> None:
+        """The sweep file's ``text`` as ``ROOT/NAME/sweep.toml``, where ``physrover results``
+        finds its planned comparisons (written again by each driver: the same text)."""
+        from physrover.experiment.store import atomic_write
+
+        folder = Path(root) / self.name
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write(folder / SWEEP_COPY, text)
 
     def with_overrides(self, overrides: dict[str, Any]) -> Sweep:
         """The same sweep with ``overrides`` ({field: value}, as ``--set``) applied to every
@@ -215,6 +234,45 @@ def _slug(value: Any) -> str:
     if isinstance(value, (list, tuple)):
         return "-".join(_slug(v) for v in value)
     return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+SWEEP_COPY = "sweep.toml"
+"""The copy of its file a sweep keeps in its folder (:meth:`Sweep.write_copy`)."""
+
+
+def _comparisons(tables: Any, base: RunConfig,
+                 runs: list[dict[str, Any]]) -> tuple[dict[str, dict[str, Any]], ...]:  # fmt: skip
+    """``[[comparisons]]`` checked: each an ``a`` and a ``b`` table of config fields and
+    values that differ somewhere (the runs each side picks), each side valid with some run
+    of the sweep (``runs``: each run's grid and variant fields)."""
+    if not isinstance(tables, list):
+        raise ConfigError("comparisons", "must be [[comparisons]] tables, each with a and b")
+    out = []
+    for k, table in enumerate(tables):
+        where = f"comparisons[{k}]"
+        if not isinstance(table, dict) or set(table) != {"a", "b"}:
+            raise ConfigError(where, 'needs exactly a and b, e.g. a = { method = "D" }')
+        for side in ("a", "b"):
+            if not isinstance(table[side], dict) or not table[side]:
+                raise ConfigError(f"{where}.{side}", "must be a table of config fields")
+            _valid_somewhere(base, runs, table[side])
+        if table["a"] == table["b"]:
+            raise ConfigError(where, "a and b pick the same runs")
+        out.append({"a": dict(table["a"]), "b": dict(table["b"])})
+    return tuple(out)
+
+
+def _valid_somewhere(base: RunConfig, runs: list[dict[str, Any]], side: dict[str, Any]) -> None:
+    """A comparison's side is config fields with values some run of the sweep can have;
+    else the error of the first run tried."""
+    first = None
+    for run in runs:
+        try:
+            base.with_overrides({**run, **side})
+            return
+        except ConfigError as exc:
+            first = first or exc
+    raise first
 
 
 def run_status(spec: RunSpec) -> str:
