@@ -143,3 +143,32 @@ def test_drivers_share_a_sweep_each_run_trained_once(tmp_path, kills):
             read_metrics(Path(ref.out) / "metrics.csv")), spec.name  # fmt: skip
         if not kills:  # nobody died: one process trained each run, start to end
             assert _segments(Path(spec.out)) == 1, spec.name
+
+
+def test_a_locked_claim_not_yet_named_is_held_not_free(tmp_path):
+    import fcntl
+
+    run = tmp_path / "run"
+    run.mkdir()
+    fd = os.open(run / CLAIM, os.O_RDWR | os.O_CREAT)  # locked, its holder not written yet
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    try:
+        assert holder(run) == {"host": "?", "pid": "?", "since": None}
+        with pytest.raises(RunHeld, match="held by another process"):
+            with claim(run):
+                pass
+    finally:
+        os.close(fd)
+    assert holder(run) is None
+
+
+def test_a_new_run_on_a_file_or_a_full_folder_is_one_line_and_claims_nothing(tmp_path, capsys):
+    (tmp_path / "file").write_text("not a run")
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "notes.txt").write_text("mine")
+    for out in ("file", "full"):
+        assert main(["train", "--set", "n_rovers=3", "--out", str(tmp_path / out)]) != 0
+        err = capsys.readouterr().err.strip()
+        assert err == f"physrover: error: {tmp_path / out} exists and is not empty; use " \
+            f"--resume {tmp_path / out} to continue it"  # fmt: skip
+    assert not (tmp_path / "full" / CLAIM).exists()

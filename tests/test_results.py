@@ -206,3 +206,29 @@ b = { method = "G" }
     assert Sweep.load(tmp_path / "root" / "kept" / "sweep.toml").comparisons == (
         {"a": {"method": "D"}, "b": {"method": "G"}},
     )
+
+
+def test_a_field_one_side_leaves_out_is_the_bases_value(tmp_path):
+    # b names no hidden size: it is the base's 32, not every size the variants ran
+    text = (
+        SWEEP.replace('"fig8-9-paper"', '"sizes"').replace("n_rovers = [3, 4]", "")
+        + """
+[[variants]]
+[[variants]]
+hidden = 16
+[[variants]]
+hidden = 64
+[[comparisons]]
+a = { method = "D", hidden = 16 }
+b = { method = "D" }
+"""
+    )
+    path = tmp_path / "sizes.toml"
+    path.write_text(text)
+    sweep = Sweep.load(path)
+    _fake_runs(sweep, tmp_path / "root", None)
+    sweep.write_copy(tmp_path / "root", text)
+    assert main(["results", str(tmp_path / "root" / "sizes"), "--out", str(tmp_path / "o")]) == 0
+    (row,) = _rows(tmp_path / "o" / "sizes_significance.csv")
+    assert (row["A"], row["B"], row["n_A"], row["n_B"]) == ("method=D hidden=16", "method=D",
+                                                             "4", "4")  # fmt: skip

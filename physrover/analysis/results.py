@@ -211,10 +211,21 @@ def _planned(sweep_dir: Path, result: SweepResults, out: Path) -> list[str]:
     copy = sweep_dir / SWEEP_COPY
     if not copy.is_file():
         return []
-    sweep = Sweep.load(copy)
+    try:
+        sweep = Sweep.load(copy)
+    except Exception as exc:  # e.g. its imports, relative to where the file was
+        return [f"{result.name}: planned comparisons not made: {copy}: {exc}"]
     if not sweep.comparisons:
         return []
-    rows, skipped = planned_comparisons(result.rows, sweep.comparisons, sweep.base)
+    found = {run.path.name: run for run in result.runs}
+    runs = []  # each finished run's fields: its own config, or an earlier machine's row
+    for row in result.rows:
+        run = found.get(row["run"])
+        fields = {k: format_value(v) for k, v in run.fields.items()} if run else dict(row)
+        runs.append({**fields, "final_G": row["final_G"]})
+    rows, skipped = planned_comparisons(
+        runs, sweep.comparisons, sweep.base, ["method", *result.grid]
+    )
     if not rows:
         return [*skipped, f"{result.name}: no planned comparison has 2 runs a side yet"]
     path = write_csv(rows, COLUMNS, out / f"{result.name}_significance.csv")

@@ -296,7 +296,8 @@ class RoverWorld:
         """Each POI's coupling (Eq. 12) from the next reset on: ``n_req`` one int or (K,)
         ints in 1 .. R (a coupling curriculum's, :mod:`physrover.learn.curriculum`). The
         compiled step reads the plan's array, so nothing recompiles; D, D++ and influence
-        credit read it too. Refused mid-episode."""
+        credit read it too. Refused once an episode has stepped (a reset's state 0 was
+        scored at the old coupling: reset again before stepping)."""
         if 0 < self.t < self.config.steps:
             raise RuntimeError(f"the coupling changes between episodes, not at step {self.t}")
         values = np.broadcast_to(np.asarray(n_req), self.n_req.shape)

@@ -40,6 +40,10 @@ from pathlib import Path
 
 from physrover.experiment.store import CLAIM, RunError
 
+TRIES = 5
+"""Attempts, 20 ms apart, before a claim is refused: another process's :func:`holder`
+holds the file's lock shared for an instant."""
+
 _held: dict[str, tuple[int, int]] = {}
 """The claims this process holds: run directory -> (file descriptor, depth)."""
 
@@ -78,14 +82,18 @@ def holder(run_dir: Path) -> dict | None:
         finally:
             os.close(fd)
     try:
-        return json.loads(path.read_text() or "null")
-    except (OSError, ValueError):  # being written this instant: held, by whom unknown
-        return {"host": "?", "pid": 0, "since": 0.0}
+        who = json.loads(path.read_text() or "null")
+    except (OSError, ValueError):
+        who = None
+    # locked but not yet (or no longer) named: held, by a process this cannot name
+    return who if isinstance(who, dict) else {"host": "?", "pid": "?", "since": None}
 
 
 def holder_line(run_dir: Path, who: dict) -> str:
     """``RUN is held by pid PID on HOST since TIME``."""
-    since = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(who.get("since", 0.0)))
+    if who.get("since") is None:
+        return f"{run_dir} is held by another process (naming itself this instant)"
+    since = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(who["since"]))
     return f"{run_dir} is held by pid {who.get('pid')} on {who.get('host')} since {since}"
 
 
@@ -116,15 +124,23 @@ def claim(run_dir: Path) -> Iterator[None]:
             fd, depth = _held[key]
             _held[key] = (fd, depth - 1)
         return
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunError(f"{run_dir} is a file, not a run directory")
     run_dir.mkdir(parents=True, exist_ok=True)
     fd = os.open(run_dir / CLAIM, os.O_RDWR | os.O_CREAT, 0o666)  # as the umask says
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as exc:
-        os.close(fd)
-        if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-            raise
-        raise RunHeld(_held_message(run_dir, holder(run_dir) or {})) from None
+    for attempt in range(TRIES):
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            break
+        except OSError as exc:
+            if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                os.close(fd)
+                raise
+            # another process's look (holder()) holds a shared lock for an instant
+            if attempt == TRIES - 1:
+                os.close(fd)
+                raise RunHeld(_held_message(run_dir, holder(run_dir) or {})) from None
+            time.sleep(0.02)
     try:
         me = {"host": socket.gethostname(), "pid": os.getpid(), "since": time.time()}
         os.ftruncate(fd, 0)

@@ -148,6 +148,7 @@ def _released(waiting: list[RunSpec], held: dict[str, str]) -> list[RunSpec]:
     first = next(iter(held.values()))
     print(f"\nwaiting for {len(waiting)} run(s) other processes hold ({first})",
           file=sys.stderr)  # fmt: skip
+    time.sleep(HELD_POLL)  # at least once: a holder finishing this instant is no hot loop
     while all(holder(Path(spec.out)) is not None for spec in waiting):
         time.sleep(HELD_POLL)
     return waiting

@@ -12,13 +12,13 @@ Layout of a run directory::
     champions/gen_NNNNNN.npy   (R, P) genomes of the champion team at each checkpoint
     provenance.json            the code and machine of every start and resume
                                (physrover.experiment.provenance)
+    .claim                     locked while a process trains the run (experiment.claims)
 
 Every file is replaced through :func:`atomic_write` (temporary file, fsync, rename,
 directory fsync) but the rows the training loop appends to metrics.csv, where a line torn
 by a kill is not read and a resume drops the rows past its checkpoint. This module knows
-nothing of how a run trains
-(:mod:`physrover.experiment.training`); it takes any learner with ``state()``,
-``load_state()``, ``generation`` and ``champion_genomes()``.
+nothing of how a run trains (:mod:`physrover.experiment.training`); it takes any learner
+with ``state()``, ``load_state()``, ``generation`` and ``champion_genomes()``.
 """
 
 from __future__ import annotations
@@ -50,8 +50,7 @@ CONFIG, METRICS, STATE_NPZ, STATE_PREV, STATE_JSON, CHAMPIONS = (
     "state.json",
     "champions",
 )
-META_KEY = "__meta__"
-"""state.npz's entry holding the checkpoint's metadata: its JSON text as uint8 bytes."""
+META_KEY = "__meta__"  # state.npz's entry of the checkpoint's metadata: JSON as uint8 bytes
 CLAIM = ".claim"  # the file a process locks while it trains the run (experiment.claims)
 
 
@@ -87,9 +86,7 @@ def atomic_write(path: Path, data: bytes | str, previous: Path | None = None) ->
     copy, kept until the next write): between the two renames ``path`` is missing and
     ``previous`` holds it. The file gets the permissions of a file opened the usual way
     (0666 less the umask), not mkstemp's private 0600, so colleagues read every file of a
-    run alike. An OSError (disk full, ...) removes the temporary file and leaves ``path``
-    as it was.
-    """
+    run alike. An OSError (disk full, ...) removes the temporary file, ``path`` unchanged."""
     if isinstance(data, str):
         data = data.encode()
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -128,8 +125,7 @@ def save_state(run_dir: Path, learner) -> None:
     ``state.json`` (a summary: the metadata, read by ``--status`` and the sweeps) after,
     so a kill at any instant leaves a checkpoint that :func:`load_state` resumes from.
     An OSError (a full disk) is a :class:`RunError` naming the file; the previous
-    checkpoint stays intact.
-    """
+    checkpoint stays intact."""
     arrays, meta = learner.state()
     generation = int(learner.generation)
     meta = {**meta, "generation": generation}
@@ -170,10 +166,9 @@ def intact_checkpoint(run_dir: Path) -> str:
 
 
 def record_provenance(run_dir: Path, done: int, total: int) -> None:
-    """Append this process's segment to ``run_dir``'s provenance.json
-    (:func:`physrover.experiment.provenance.with_segment`, which warns of other code or another CPU)
-    as it trains from generation ``done`` to ``total``; none when ``done >= total`` (a
-    finished run resumed trains nothing)."""
+    """Append this process's segment (generations ``done`` to ``total``) to provenance.json
+    (:func:`~physrover.experiment.provenance.with_segment`, which warns of other code or
+    another CPU); none when ``done >= total`` (a finished run resumed trains nothing)."""
     if done < total:
         segments = with_segment(run_dir, done)
         text = json.dumps({"segments": segments}, indent=1) + "\n"
@@ -340,12 +335,17 @@ def format_value(value: float) -> str:
 
 
 def prepare_run_dir(out: Path, config: RunConfig, header: list[str] | None = None) -> None:
-    """A new run: config and empty metrics.csv; refused if ``out`` holds more than a claim."""
-    if out.exists() and (not out.is_dir() or any(p.name != CLAIM for p in out.iterdir())):
-        raise RunError(f"{out} exists and is not empty; use --resume {out} to continue it")
+    """A new run: its config and an empty metrics.csv (where :func:`check_new` allows)."""
+    check_new(out)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / CONFIG, config.to_toml())
     write_metrics(out / METRICS, [], header)
+
+
+def check_new(out: Path) -> None:
+    """Refuse ``out`` for a new run unless it is missing or holds nothing but a claim."""
+    if out.exists() and (not out.is_dir() or any(p.name != CLAIM for p in out.iterdir())):
+        raise RunError(f"{out} exists and is not empty; use --resume {out} to continue it")
 
 
 def find_runs(paths: list[str | Path]) -> list[Path]:

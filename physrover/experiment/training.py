@@ -17,6 +17,7 @@ from physrover.experiment.loop import TensorBoardLog, write_rows
 from physrover.experiment.store import (
     CONFIG,
     atomic_write,
+    check_new,
     load_run_config,
     prepare_run_dir,
     record_provenance,
@@ -72,6 +73,8 @@ def train(
             lengthened = True
     if tensorboard:
         TensorBoardLog.check_installed()
+    if not resume:
+        check_new(out)  # before the claim makes the directory
     with claim(out):  # one process trains a run at a time (physrover.experiment.claims)
         if resume and lengthened:
             atomic_write(out / CONFIG, config.to_toml())
