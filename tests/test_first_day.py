@@ -129,7 +129,8 @@ def test_sweep_set_shortens_a_sweep_under_a_name_of_its_own(tmp_path, capsys):
     root = tmp_path / "root"
     assert main(["sweep", str(sweep), "--set", "generations=3", "--root", str(root),
                  "--workers", "1"]) == 0  # fmt: skip
-    runs = sorted((root / "s+generations=3").iterdir())
+    runs = sorted(p for p in (root / "s+generations=3").iterdir() if p.is_dir())
+    assert (root / "s+generations=3" / "sweep.toml").is_file()  # the file, for results
     assert [len(read_metrics(r / "metrics.csv")) for r in runs] == [3, 3]
     assert not (root / "s").exists()  # the file's own runs are not these
     assert "2 runs trained" in capsys.readouterr().out  # was "2 run"

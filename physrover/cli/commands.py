@@ -143,10 +143,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             return 0
         if args.tensorboard:
             TensorBoardLog.check_installed()
-        check_free(out)  # another process training it: say so, not "resuming"
-        start = f"from {config.unit} {done}" if done is not None else "from the start (no " \
-            "checkpoint yet)"  # fmt: skip
-        print(f"resuming {out} {start} to {config.length}", file=sys.stderr)
+        check_free(out)  # another process training it: say so before anything else
     else:
         config = _run_config(args)
         out = Path(args.out) if args.out else _default_out(config, args)
@@ -156,9 +153,14 @@ def cmd_train(args: argparse.Namespace) -> int:
             print(f"run directory: {out}", file=sys.stderr)
     try:
         if args.resume:
+
+            def said(generation: int) -> None:  # once the checkpoint has loaded
+                print(f"resuming {out} from {config.unit} {generation} to {config.length}",
+                      file=sys.stderr)  # fmt: skip
+
             train(None, out, resume=True, generations=args.generations,
                   iterations=args.iterations, progress=not args.quiet,
-                  tensorboard=args.tensorboard)  # fmt: skip
+                  tensorboard=args.tensorboard, on_resumed=said)  # fmt: skip
         else:
             train(config, out, progress=not args.quiet, tensorboard=args.tensorboard)
     except KeyboardInterrupt:

@@ -52,7 +52,13 @@ def metrics_row(stats: dict) -> dict:
 
 
 def train_trainer(
-    config: RunConfig, out: str | Path, *, resume: bool, progress: bool, tensorboard: bool
+    config: RunConfig,
+    out: str | Path,
+    *,
+    resume: bool,
+    progress: bool,
+    tensorboard: bool,
+    on_resumed=None,
 ) -> Path:
     """Train (or continue, with ``resume``) a gradient-based baseline in run directory ``out``."""
     out = Path(out)
@@ -63,6 +69,8 @@ def train_trainer(
     spec = TRAINERS[config.learn.method]
     trainer = spec.load()(config.trainer, config.domain)
     rows = resume_run(out, trainer, metrics_header()) if resume else []
+    if resume and on_resumed:  # training.train's, once the checkpoint has loaded
+        on_resumed(trainer.iterations)
     record_provenance(out, trainer.iterations, trainer.total_iterations)
     log = TensorBoardLog(out) if tensorboard else None
     total = trainer.total_iterations

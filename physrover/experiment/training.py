@@ -46,6 +46,7 @@ def train(
     progress: bool = True,
     tensorboard: bool = False,
     on_generation: Callable[[GenerationStats], None] | None = None,
+    on_resumed: Callable[[int], None] | None = None,
 ) -> Path:
     """Train (or continue) a run in ``out`` up to its length: ``generations`` for the CCEA,
     ``iterations`` for a gradient-based trainer (``num_envs`` episodes each; its
@@ -57,9 +58,10 @@ def train(
     ``tensorboard``, every metrics row is also written as TensorBoard scalars under
     ``out/tensorboard`` (needs ``pip install 'physrover[tensorboard]'``, checked first).
 
-    The run is claimed while it trains (:mod:`physrover.experiment.claims`): another
-    process training ``out`` raises :class:`~physrover.experiment.claims.RunHeld` at once,
-    naming it.
+    ``on_resumed(generation)`` is called once a resume has loaded its checkpoint (0: none
+    yet, the run starts over). The run is claimed while it trains
+    (:mod:`physrover.experiment.claims`): another process training ``out`` raises
+    :class:`~physrover.experiment.claims.RunHeld` at once, naming it.
     """
     out = Path(out)
     if resume:
@@ -78,17 +80,18 @@ def train(
     with claim(out):  # one process trains a run at a time (physrover.experiment.claims)
         if resume and lengthened:
             atomic_write(out / CONFIG, config.to_toml())
-        return _train_claimed(config, out, resume, progress, tensorboard, on_generation)
+        return _train_claimed(config, out, resume, progress, tensorboard, on_generation,
+                              on_resumed)  # fmt: skip
 
 
 def _train_claimed(config: RunConfig, out: Path, resume: bool, progress: bool,
-                   tensorboard: bool, on_generation) -> Path:  # fmt: skip
+                   tensorboard: bool, on_generation, on_resumed) -> Path:  # fmt: skip
     """:func:`train` once the run is claimed."""
     if config.trainer is not None:  # a gradient-based baseline, not the CCEA
         from physrover.experiment.trainer_runs import train_trainer
 
         return train_trainer(config, out, resume=resume, progress=progress,
-                             tensorboard=tensorboard)  # fmt: skip
+                             tensorboard=tensorboard, on_resumed=on_resumed)  # fmt: skip
     header = stats_header(curriculum=config.learn.curriculum_start > 0)
     if not resume:
         prepare_run_dir(out, config, header)
@@ -100,6 +103,8 @@ def _train_claimed(config: RunConfig, out: Path, resume: bool, progress: bool,
                     else "compiling kernels, first run only")  # fmt: skip
     ccea = CCEA(config)
     rows = resume_run(out, ccea, header) if resume else []
+    if resume and on_resumed:
+        on_resumed(ccea.generation)
     record_provenance(out, ccea.generation, total)
 
     latest: list[GenerationStats] = []
