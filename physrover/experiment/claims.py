@@ -44,8 +44,10 @@ TRIES = 5
 """Attempts, 20 ms apart, before a claim is refused: another process's :func:`holder`
 holds the file's lock shared for an instant."""
 
-_held: dict[str, tuple[int, int]] = {}
-"""The claims this process holds: run directory -> (file descriptor, depth)."""
+_held: dict[str, tuple[int, int, dict]] = {}
+"""The claims this process holds: run directory -> (file descriptor, depth, holder). Its
+own claim is never opened a second time: on NFS, where flock is a POSIX lock, closing any
+descriptor of the file would release it."""
 
 
 class HeldRun(str):
@@ -66,21 +68,22 @@ def holder(run_dir: Path) -> dict | None:
     since the epoch), or None if no process does. This process's own claim included."""
     key = _key(run_dir)
     path = Path(run_dir) / CLAIM
-    if key not in _held:
-        try:
-            fd = os.open(path, os.O_RDONLY)
-        except FileNotFoundError:
-            return None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        except OSError as exc:
-            if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-                raise
-        else:
-            fcntl.flock(fd, fcntl.LOCK_UN)
-            return None
-        finally:
-            os.close(fd)
+    if key in _held:
+        return dict(_held[key][2])
+    try:  # another process's claim, or none
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError as exc:
+        if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+            raise
+    else:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
     try:
         who = json.loads(path.read_text() or "null")
     except (OSError, ValueError):
@@ -116,13 +119,13 @@ def claim(run_dir: Path) -> Iterator[None]:
     run_dir = Path(run_dir)
     key = _key(run_dir)
     if key in _held:  # re-entrant within a process
-        fd, depth = _held[key]
-        _held[key] = (fd, depth + 1)
+        fd, depth, me = _held[key]
+        _held[key] = (fd, depth + 1, me)
         try:
             yield
         finally:
-            fd, depth = _held[key]
-            _held[key] = (fd, depth - 1)
+            fd, depth, me = _held[key]
+            _held[key] = (fd, depth - 1, me)
         return
     if run_dir.exists() and not run_dir.is_dir():
         raise RunError(f"{run_dir} is a file, not a run directory")
@@ -145,7 +148,7 @@ def claim(run_dir: Path) -> Iterator[None]:
         me = {"host": socket.gethostname(), "pid": os.getpid(), "since": time.time()}
         os.ftruncate(fd, 0)
         os.pwrite(fd, json.dumps(me).encode(), 0)
-        _held[key] = (fd, 1)
+        _held[key] = (fd, 1, me)
         yield
     finally:
         _held.pop(key, None)
