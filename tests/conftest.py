@@ -4,10 +4,12 @@ import json
 import os
 
 import numpy as np
+import pytest
 
 from physrover.experiment.store import read_metrics
 
 
+@pytest.hookimpl(optionalhook=True)  # pytest without xdist (the BenchMARL venv) skips it
 def pytest_xdist_auto_num_workers(config):
     """``-n auto`` (the README's test command): a worker per core, at most 4 (each imports
     torch and compiles or loads the kernels; more contend for the kernel cache and memory)."""
