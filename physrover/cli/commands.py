@@ -141,16 +141,15 @@ def cmd_train(args: argparse.Namespace) -> int:
             print(f"{out} is already at {done} {config.unit}s; to extend it: "
                   f"physrover train --resume {out} {flag} {done + 1000}")  # fmt: skip
             return 0
-        if args.tensorboard:
-            TensorBoardLog.check_installed()
-        check_free(out)  # another process training it: say so before anything else
     else:
         config = _run_config(args)
         out = Path(args.out) if args.out else _default_out(config, args)
-        if args.tensorboard:  # before naming a run directory that nothing will be written to
-            TensorBoardLog.check_installed()
-        if not args.out and not args.quiet:  # a name of its own: say it first
-            print(f"run directory: {out}", file=sys.stderr)
+    if args.tensorboard:  # before naming a run directory that nothing will be written to
+        TensorBoardLog.check_installed()
+    if args.resume:
+        check_free(out)  # another process training it: say so before anything else
+    elif not args.out and not args.quiet:  # a name of its own: say it first
+        print(f"run directory: {out}", file=sys.stderr)
     try:
         if args.resume:
 

@@ -88,6 +88,12 @@ class PoiRule(ConfigBase):
         check(not (require and self.n_req), "require", "give n_req or require, not both")
 
     @property
+    def scored_by_rule(self) -> bool:
+        """Whether it scores by a rule (``after``, ``score_at = "final"``, ``require``), not
+        by a count of agents in range at any scored step as the paper's POIs do."""
+        return bool(self.after) or self.score_at != "any" or bool(self.require)
+
+    @property
     def hides(self) -> bool:
         """Whether some agent may not sense it (``visible_to``, ``sense_radius``,
         ``disappear``): only a class-aware sensor (the lidar) can apply that."""

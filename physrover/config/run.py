@@ -74,8 +74,7 @@ class RunConfig:
         check(start < top, "curriculum_start",
               f"must be below the domain's coupling (n_req {top}), got {start}")  # fmt: skip
         for k, poi in enumerate(self.domain.pois):
-            counted = poi.disappear == "never" and not poi.after and not poi.require and \
-                poi.score_at == "any"  # fmt: skip
+            counted = poi.disappear == "never" and not poi.scored_by_rule
             check(counted, "curriculum_start", f"pois[{k}] vanishes once captured or scores "
                   "by a rule (after, score_at, require); the curriculum needs POIs captured "
                   "by a count of agents in range")  # fmt: skip

@@ -107,17 +107,10 @@ class Sweep:
             raise ConfigError("seeds", f"must be a positive integer, got {seeds!r}")
         variants = tuple(data.get("variants", [{}]))
         points = itertools.product(*([(f, v) for v in values] for f, values in grid.items()))
-        for point in points:  # every run's config must be valid (a variant may need the grid's)
-            for variant in variants:
-                base.with_overrides({**dict(point), **variant})
+        runs = [{**dict(point), **variant} for point in points for variant in variants]
+        for run in runs:  # every run's config must be valid (a variant may need the grid's)
+            base.with_overrides(run)
         name = str(meta.get("name", Path(path).stem))
-        runs = [
-            {**dict(point), **variant}
-            for point in itertools.product(
-                *([(f, v) for v in values] for f, values in grid.items())
-            )
-            for variant in variants
-        ]
         comparisons = _comparisons(data.get("comparisons", []), base, runs)
         return cls(name, base, grid, seeds, variants, tuple(imports), comparisons)
 

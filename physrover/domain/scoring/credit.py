@@ -72,7 +72,7 @@ class DPlusPlus(Credit):
     def check(self, domain) -> None:
         """D++'s partners complete couplings at any step: not defined for ordered (``after``),
         typed (``require``) or final-state POIs."""
-        ruled = any(p.after or p.score_at != "any" or p.require for p in domain.pois)
+        ruled = any(p.scored_by_rule for p in domain.pois)
         check(not ruled, "feedback", 'D++ is not defined for POIs with after, require or '
               'score_at = "final" ([[pois]])')  # fmt: skip
 
