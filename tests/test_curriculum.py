@@ -8,6 +8,7 @@ from conftest import assert_same_run, play_alike
 from test_learning import EASY
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
+from physrover.domain.scoring.rules import PoiRules
 from physrover.domain.world import RoverWorld
 from physrover.experiment.store import read_metrics
 from physrover.experiment.training import train
@@ -32,6 +33,11 @@ def _loop_G(in_range, values, n_req, last_step):
     return out
 
 
+def _rules(world):
+    """The POI rules a world's captures are replayed under (the paper's POIs: none built)."""
+    return world.plan.step.rules or PoiRules.build(world.config, world.n_teams, always=True)
+
+
 def _crowded_world(n_req, n_teams=8, **fields):
     return RoverWorld(DomainConfig().replace(**CROWDED, n_req=n_req, **fields), n_teams)
 
@@ -46,7 +52,8 @@ def test_rescoring_is_the_episode_played_at_that_coupling(seed):
     seen = set()
     for n, world in worlds.items():
         target = np.full(4, n)
-        got = score_at_coupling(loose.in_range, loose.poi_values, target, world.plan.step.t_final)
+        got = score_at_coupling(loose.in_range, loose.poi_values, target, world.plan.step.t_final,
+                                _rules(worlds[1]))  # fmt: skip
         np.testing.assert_array_equal(got, world.G)  # played at n: the same G, bit for bit
         np.testing.assert_array_equal(got, _loop_G(loose.in_range, loose.poi_values, target,
                                                    world.plan.step.t_final))  # fmt: skip
@@ -60,10 +67,11 @@ def test_rescoring_counts_only_the_scored_steps_and_each_poi_once():
     in_range[2, 0, :2, 0] = True  # and again at step 2: counted once
     in_range[3, 0, :, 1] = True  # three at POI 1 at step 3
     values = np.array([[2.0, 5.0]])
-    assert score_at_coupling(in_range, values, np.array([2, 3]), 3)[0] == 7.0
-    assert score_at_coupling(in_range, values, np.array([2, 3]), 2)[0] == 2.0  # step 3 unscored
-    assert score_at_coupling(in_range, values, np.array([3, 4]), 3)[0] == 0.0
-    assert score_at_coupling(in_range, values, np.array([1, 1]), 0)[0] == 0.0
+    rules = PoiRules.build(DomainConfig(n_rovers=3, poi_values=(2.0, 5.0)), 1, always=True)
+    assert score_at_coupling(in_range, values, np.array([2, 3]), 3, rules)[0] == 7.0
+    assert score_at_coupling(in_range, values, np.array([2, 3]), 2, rules)[0] == 2.0  # 3: unscored
+    assert score_at_coupling(in_range, values, np.array([3, 4]), 3, rules)[0] == 0.0
+    assert score_at_coupling(in_range, values, np.array([1, 1]), 0, rules)[0] == 0.0
 
 
 def test_the_coupling_tightens_after_patience_generations_at_the_threshold():

@@ -40,6 +40,7 @@ import numpy as np
 from physrover.config import RunConfig
 from physrover.core.compiled import dims
 from physrover.core.registry import CREDITS
+from physrover.domain.scoring.rules import PoiRules
 from physrover.envs.gymnasium_env import RoverVectorEnv, generator_from_state, team_spaces
 from physrover.learn.classes import team_layout
 from physrover.learn.curriculum import CouplingCurriculum, score_at_coupling
@@ -109,6 +110,8 @@ class CCEA:
                                                  cfg.curriculum_threshold,
                                                  cfg.curriculum_patience)  # fmt: skip
             self.env.world.set_coupling(self.curriculum.n_req)
+            world = self.env.world  # the rules its rescoring replays captures under
+            self._rules = world.plan.step.rules or PoiRules.build(d, world.n_teams, always=True)
         self.fitness = np.zeros((self.n_rovers, self.k))
         # the fitness each policy carries into softmax team formation (NaN: not scored yet)
         self.carried = np.zeros((self.n_rovers, self.k))
@@ -245,7 +248,8 @@ class CCEA:
         world, evaluated = self.env.world, slice(self.n_played, None)
         values = world.state.poi_values[evaluated]
         G = score_at_coupling(world.state.in_range[:, evaluated], values,
-                              self.curriculum.target, world.plan.step.t_final)  # fmt: skip
+                              self.curriculum.target, world.plan.step.t_final,
+                              self._rules)  # fmt: skip
         if self.curriculum.observe(champion_G, float(values.sum(axis=1).mean())):
             world.set_coupling(self.curriculum.n_req)
         return float(G.mean())

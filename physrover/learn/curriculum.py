@@ -21,17 +21,24 @@ from __future__ import annotations
 
 import numpy as np
 
+from physrover.domain.scoring.difference import team_score
+from physrover.domain.scoring.influence import replay_captures
+
 
 def score_at_coupling(in_range: np.ndarray, poi_values: np.ndarray, n_req: np.ndarray,
-                      last_step: int) -> np.ndarray:  # fmt: skip
+                      last_step: int, rules) -> np.ndarray:  # fmt: skip
     """G (Eq. 11) of each team's episode at coupling ``n_req`` (K,) int, from the recorded
     in-range sets ``in_range`` (T + 1, E, R, K) bool (Eq. 13, the world's
-    ``state.in_range``) of steps 0 .. ``last_step`` and the POI values (E, K): POI k is
-    captured if at some scored step at least ``n_req[k]`` agents are in its range (Eq. 12).
-    Returns (E,) float64."""
-    counts = in_range[: last_step + 1].sum(axis=2)  # (T', E, K) agents in range
-    captured = (counts >= np.asarray(n_req)[None, None, :]).any(axis=0)  # (E, K)
-    return (np.asarray(poi_values, dtype=np.float64) * captured).sum(axis=1)
+    ``state.in_range``) of steps 0 .. ``last_step`` and the POI values (E, K): the captures
+    replayed by the scoring's own kernel
+    (:func:`~physrover.domain.scoring.influence.replay_captures`, Eq. 12 under ``rules``,
+    the world's :class:`~physrover.domain.scoring.rules.PoiRules`), nobody left out, and
+    :func:`~physrover.domain.scoring.difference.team_score`. Returns (E,) float64."""
+    n_teams, n_agents, n_pois = in_range.shape[1:]
+    removed = np.zeros((n_teams, 1, last_step + 1, n_agents), dtype=bool)
+    captured = np.empty((n_teams, 1, n_pois), dtype=bool)
+    replay_captures(in_range, removed, np.asarray(n_req, dtype=np.int64), rules, captured)
+    return team_score(captured, poi_values)[:, 0]
 
 
 class CouplingCurriculum:
