@@ -609,3 +609,41 @@ def indirect_difference_loops(positions, score_args, influence_radius, counted, 
                                       **typed)  # fmt: skip
         credit.append(G - G_without[0])
     return credit
+
+
+def coupled_score_loops(world, e, steps, extra_rover=-1, copies=1, removed=-1) -> float:
+    """G of team ``e`` (Eqs. 11-13) by plain loops over the recorded positions, over the
+    scored steps ``steps``, with rover ``removed`` left out and rover ``extra_rover``
+    counted ``copies`` times (D's and D++'s counterfactuals)."""
+    cfg = world.config
+    hist, pois, values = world.position_history, world.poi_positions, world.poi_values
+    n_req = cfg.n_req_per_poi
+    total = 0.0
+    for k in range(world.n_pois):
+        for t in steps:
+            n = 0
+            for i in range(world.n_rovers):
+                d = hist[t, e, i] - pois[e, k]
+                if i != removed and d @ d <= cfg.d_cap**2:
+                    n += copies if i == extra_rover else 1
+            if n >= n_req[k]:
+                total += values[e, k]
+                break
+    return total
+
+
+def wandering_world(n_req, scored_states: str, action_seed: int):
+    """8 teams of 6 rovers near 3 POIs (values 1, 2, 4; ring radius 3, capture radius 2),
+    12 steps of uniform random actions: episodes where couplings form and fail."""
+    from physrover.config import DomainConfig
+    from physrover.domain.world import RoverWorld
+
+    config = DomainConfig(n_rovers=6, n_req=n_req, poi_values=(1.0, 2.0, 4.0), steps=12,
+                          d_cap=2.0, scored_states=scored_states)  # fmt: skip
+    config = config.replace(poi_ring_radius=3.0)
+    world = RoverWorld(config, 8)
+    world.reset([np.random.default_rng(s) for s in range(8)])
+    rng = np.random.default_rng(action_seed)
+    for _ in range(config.steps):
+        world.step(rng.uniform(-1, 1, (8, 6, 2)))
+    return world

@@ -11,6 +11,7 @@ from physrover import RoverEnv
 from physrover.config import ConfigError, DomainConfig
 from physrover.domain.scoring.difference import d_plus_plus
 from physrover.domain.world import RoverWorld, StartOverrides
+from tests.oracles import coupled_score_loops, wandering_world
 
 # POI 0 (value 3) at the origin, POI 1 (value 5) at (20, 0); capture radius 1.
 POIS = [[0.0, 0.0], [20.0, 0.0]]
@@ -56,24 +57,12 @@ def test_dpp_with_coupling_one_is_D():
 def _dpp_oracle(world) -> np.ndarray:
     """D++ by plain loops over the recorded positions (Eq. 13 recomputed from scratch)."""
     cfg = world.config
-    hist, pois, values = world.position_history, world.poi_positions, world.poi_values
     n_req = cfg.n_req_per_poi
-    T = hist.shape[0] if cfg.scored_states == "all" else hist.shape[0] - 1
-    E, R, K = world.n_teams, world.n_rovers, world.n_pois
+    T = world.position_history.shape[0] - (cfg.scored_states != "all")
+    E, R = world.n_teams, world.n_rovers
 
     def score(e, extra_rover, copies, removed):
-        total = 0.0
-        for k in range(K):
-            for t in range(T):
-                n = 0
-                for i in range(R):
-                    d = hist[t, e, i] - pois[e, k]
-                    if i != removed and d @ d <= cfg.d_cap**2:
-                        n += copies if i == extra_rover else 1
-                if n >= n_req[k]:
-                    total += values[e, k]
-                    break
-        return total
+        return coupled_score_loops(world, e, range(T), extra_rover, copies, removed)
 
     out = np.zeros((E, R))
     for e in range(E):
@@ -91,13 +80,7 @@ def _dpp_oracle(world) -> np.ndarray:
 @pytest.mark.parametrize(("n_req", "scored"), [(2, "all"), (3, "all"), ((1, 4, 2), "all"),
                                                (3, "before-steps")])  # fmt: skip
 def test_dpp_matches_the_plain_loop_oracle_on_random_episodes(n_req, scored):
-    config = DomainConfig(n_rovers=6, n_req=n_req, poi_values=(1.0, 2.0, 4.0), steps=12,
-                          d_cap=2.0, scored_states=scored).replace(poi_ring_radius=3.0)  # fmt: skip
-    world = RoverWorld(config, 8)
-    world.reset([np.random.default_rng(s) for s in range(8)])
-    rng = np.random.default_rng(1)
-    for _ in range(config.steps):
-        world.step(rng.uniform(-1, 1, (8, 6, 2)))
+    world = wandering_world(n_req, scored, action_seed=1)
     got = d_plus_plus(world.state, world.n_req)
     np.testing.assert_array_equal(got, _dpp_oracle(world))
     assert (got != world.D).any()  # the episodes are ones where partners matter

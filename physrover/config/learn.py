@@ -88,6 +88,12 @@ class LearnConfig(ConfigBase):
     critic_output_weights: str = "fixed"
     """The critic's hidden-to-output weights: "fixed" to 1 (the paper's) or "trained" with
     the other parameters (an ablation; initialised to 1)."""
+    critic_target: str = "episode"
+    """What each state-action pair of the critic's replay is fitted to: "episode" (the
+    paper's: its trajectory's immediate feedback, Eqs. 9-10) or, beyond the paper, "step"
+    (the feedback signal of the step its action leads to, taken alone:
+    :func:`physrover.domain.scoring.difference.step_credits`; feedback D, G or D++, inexact
+    updates, POIs without rules)."""
     leaky_slope: float = 0.01
     """Slope of the critic's leaky ReLU for negative inputs."""
     critic_lr: float = 5e-6
@@ -151,6 +157,7 @@ class LearnConfig(ConfigBase):
         check(self.feedback in CREDITS, "feedback", CREDITS.unknown_message(self.feedback))
         check_choice(self.critic_optimizer, OPTIMIZERS, "critic_optimizer")
         check_choice(self.critic_output_weights, ("fixed", "trained"), "critic_output_weights")
+        check_choice(self.critic_target, ("episode", "step"), "critic_target")
         check(self.critic_top_k >= 1, "critic_top_k", f"must be >= 1, got {self.critic_top_k}")
         check(
             self.critic_top_k == 1 or self.method in ("max-critic", *TRAINERS),
@@ -159,7 +166,8 @@ class LearnConfig(ConfigBase):
         )
         for name, paper in (("critic_ensemble", 1), ("critic_optimism", 0.0),
                             ("critic_output_weights", "fixed"),
-                            ("critic_step_input", False)):  # fmt: skip
+                            ("critic_step_input", False),
+                            ("critic_target", "episode")):  # fmt: skip
             check(
                 getattr(self, name) == paper or self.method in TRAINERS or self._has_critic(),
                 name,
@@ -167,6 +175,14 @@ class LearnConfig(ConfigBase):
             )
         check_choice(self.trajectory_loss, ("mse", "rank"), "trajectory_loss")
         spec = FITNESS_METHODS[self.method] if self.method in FITNESS_METHODS else None
+        check(
+            self.critic_target == "episode"
+            or getattr(spec, "pair_replay", False)
+            or self.method in TRAINERS,
+            "critic_target",
+            f"per-step targets need a critic that replays pairs (inexact updates: max-critic, "
+            f"mean-critic-inexact), not {self.method!r}",
+        )
         trajectory = bool(getattr(spec, "trajectory", False))
         for name, default in (("trajectory_loss", "mse"), ("trajectory_hidden", 32),
                               ("trajectory_lr", 1e-3)):  # fmt: skip

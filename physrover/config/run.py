@@ -44,6 +44,15 @@ class RunConfig:
             raise ConfigError("learn", "must be a LearnConfig")
         credit = CREDITS[self.learn.feedback] if self.learn.feedback in CREDITS else None
         getattr(credit, "check", lambda domain: None)(self.domain)  # defined for the domain?
+        if self.learn.critic_target == "step":
+            check(getattr(credit, "per_step_defined", False), "critic_target",
+                  f'per-step targets are defined for feedback "D", "G" and "D++", not '
+                  f'{self.learn.feedback!r}')  # fmt: skip
+            check(
+                not any(p.scored_by_rule for p in self.domain.pois),
+                "critic_target",
+                'per-step targets need POIs without after, require or score_at = "final"',
+            )
         self._check_curriculum()
         spec = TRAINERS[self.learn.method] if self.learn.method in TRAINERS else None
         check(spec is None or not self.domain.agents, "agents", f"{self.learn.method} trains "

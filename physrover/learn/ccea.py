@@ -164,6 +164,15 @@ class CCEA:
         gather_trajectories(obs, act, where, out, dims(obs.shape[-1]))
         return out
 
+    def _step_feedback(self, where: np.ndarray) -> np.ndarray:
+        """(R, k, T) the credit signal of each policy's step t + 1 in round 0, taken alone
+        (the step its pair t's action leads to; ``Credit.per_step``); ``where[r, p]`` is the
+        team of policy p of rover r."""
+        world = self.env.world
+        per_step = self.credit.per_step(world)[1 : world.t + 1]  # (T, E, R)
+        rovers = np.arange(self.n_rovers)[:, None]
+        return np.ascontiguousarray(per_step[:, where, rovers].transpose(1, 2, 0))
+
     def run_generation(self) -> GenerationStats:
         cfg, R, k = self.config.learn, self.n_rovers, self.k
         rounds = self.method.rounds
@@ -190,7 +199,12 @@ class CCEA:
         trajectories = None
         if self.method.needs_trajectories:
             trajectories = self._trajectories(where[0])
-        fitness = self.method.assign(feedback, G_by_policy, trajectories)
+        if getattr(self.method, "needs_step_feedback", False):
+            fitness = self.method.assign(
+                feedback, G_by_policy, trajectories, step_feedback=self._step_feedback(where[0])
+            )
+        else:
+            fitness = self.method.assign(feedback, G_by_policy, trajectories)
         t_feedback = time.perf_counter()
 
         # The champion evaluated in this batch, before evolution can overwrite it.

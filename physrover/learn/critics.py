@@ -41,7 +41,10 @@ pair; its inexact updates are per pair, so only the fitness changes); and ``ense
 mini-batches drawn from the rover's one replay buffer), a pair's value being
 ``mean_k C_k(x) + optimism * std_k C_k(x)`` (population std): with ``optimism`` > 0 an
 upper confidence value, optimism under the critic's uncertainty in the spirit of the
-paper's optimistic max. Critics are stacked rover-major: critic ``r * K + k``.
+paper's optimistic max. Critics are stacked rover-major: critic ``r * K + k``. And
+``target = "step"`` (inexact updates) stores each pair with its own step's credit (the
+feedback signal of the step its action leads to, taken alone) instead of its trajectory's
+feedback, so the critic is fitted pair by pair to where credit arose.
 """
 
 from __future__ import annotations
@@ -177,6 +180,7 @@ class CriticSettings:
     ensemble: int = 1  # critics per rover (beyond the paper; 1: the paper's one)
     optimism: float = 0.0  # a pair's value is mean + optimism * std over the ensemble
     output_weights: str = "fixed"  # "fixed" (the paper's unit weights) | "trained"
+    target: str = "episode"  # a pair's target: its trajectory's feedback | its step's credit
 
 
 class FitnessCritic:
@@ -199,6 +203,10 @@ class FitnessCritic:
         if settings.output_weights not in ("fixed", "trained"):
             raise ValueError(f"unknown output weights {settings.output_weights!r}")
         trained = settings.output_weights == "trained"
+        if settings.target not in ("episode", "step"):
+            raise ValueError(f"unknown critic target {settings.target!r}")
+        if settings.target == "step" and settings.update != "inexact":
+            raise ValueError("per-step targets need inexact updates (a replay of pairs)")
         self.critics = IntermediateCritics(n_critics, pair_dim, settings.hidden, settings.slope,
                                            rng, trained)  # fmt: skip
         self.buffer_of = np.repeat(np.arange(n_rovers), settings.ensemble)  # critic -> rover
@@ -244,16 +252,21 @@ class FitnessCritic:
         return value
 
     def store(self, trajectories: np.ndarray, feedback: np.ndarray) -> None:
-        """Add (R, k, T, D) trajectories with their (R, k) immediate feedback."""
+        """Add (R, k, T, D) trajectories with their (R, k) immediate feedback, or, with
+        ``target = "step"``, each pair's own target (R, k, T)."""
         trajectories = self.inputs(trajectories)
         if self.settings.update == "regular":
             self.buffer.add(trajectories, feedback)
-        else:  # every pair carries its trajectory's feedback
-            n_rovers, k, steps, _ = trajectories.shape
-            self.buffer.add(
-                trajectories.reshape(n_rovers, k * steps, self.pair_dim),
-                np.repeat(feedback, steps, axis=1),
-            )
+            return
+        n_rovers, k, steps, _ = trajectories.shape
+        if self.settings.target == "step":  # every pair carries its own step's credit
+            if feedback.shape != (n_rovers, k, steps):
+                raise ValueError(f"per-step targets must be (R, k, T) = {(n_rovers, k, steps)},"
+                                 f" got {feedback.shape}")  # fmt: skip
+            per_pair = feedback.reshape(n_rovers, k * steps)
+        else:  # every pair carries its trajectory's feedback (Eqs. 9-10)
+            per_pair = np.repeat(feedback, steps, axis=1)
+        self.buffer.add(trajectories.reshape(n_rovers, k * steps, self.pair_dim), per_pair)
 
     def update(self, rng: np.random.Generator) -> float:
         """The generation's mini-batch updates (compiled: ``learn.kernels.critic_update``);

@@ -61,6 +61,8 @@ class FitnessMethod:
     """Batches of k episodes (training rounds) per generation; each policy plays once per round."""
     needs_trajectories = False
     """Whether :meth:`assign` receives the policies' trajectories (the critics do)."""
+    needs_step_feedback = False
+    """Whether :meth:`assign` also receives ``step_feedback`` (``critic_target = "step"``)."""
 
     def plan(self, rng: np.random.Generator, n_rovers: int, k: int) -> np.ndarray:
         """(rounds, R, k) ints: ``order[q, r, m]`` is the policy of rover r in team m of
@@ -85,6 +87,9 @@ class FitnessMethod:
             G: (rounds, R, k) the team score of each policy's episode.
             trajectories: (R, k, T, D) (s, a) pairs of each policy in round 0, D = the
                 sensor's size + 2; None unless ``needs_trajectories``.
+
+        With ``needs_step_feedback``, also ``step_feedback`` (R, k, T): each policy's credit
+        at step t + 1 of round 0 alone (``Credit.per_step``), the step pair t leads to.
         """
         raise NotImplementedError
 
@@ -155,10 +160,11 @@ class CriticFitness(FitnessMethod):
 
     def __init__(self, critic: FitnessCritic):
         self.critic = critic
+        self.needs_step_feedback = getattr(critic.settings, "target", "episode") == "step"
 
-    def assign(self, feedback, G, trajectories=None):
+    def assign(self, feedback, G, trajectories=None, step_feedback=None):
         fitness = self.critic.fitness(trajectories)  # with the critic before this update
-        self.critic.store(trajectories, feedback[0])
+        self.critic.store(trajectories, step_feedback if self.needs_step_feedback else feedback[0])
         return fitness
 
     def update(self, rng):
@@ -218,6 +224,8 @@ class MethodSpec:
     plans_teams: bool = False
     """Whether its :meth:`FitnessMethod.plan` forms teams its own way (the hall of fame), so
     ``team_formation = "softmax"`` cannot replace it."""
+    pair_replay: bool = False
+    """Whether its critic replays pairs (inexact updates): ``critic_target = "step"``."""
 
 
 def register_method(
@@ -228,12 +236,13 @@ def register_method(
     critic: bool = False,
     trajectory: bool = False,
     plans_teams: bool = False,
+    pair_replay: bool = False,
 ) -> MethodSpec:
     """Add a fitness method under ``name`` (usable in TOML, ``--method`` and ``--set``);
     ``critic``: it has a fitness critic, which the [learn] critic fields configure;
     ``trajectory``: a trajectory critic, which the ``trajectory_*`` fields configure;
-    ``plans_teams``: its ``plan`` is not the default random teams."""
-    spec = MethodSpec(build, summary, section, critic, trajectory, plans_teams)
+    ``plans_teams``: its ``plan`` is not random teams; ``pair_replay``: see MethodSpec."""
+    spec = MethodSpec(build, summary, section, critic, trajectory, plans_teams, pair_replay)
     return FITNESS_METHODS.register(name, spec)
 
 
@@ -255,6 +264,7 @@ def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
         ensemble=cfg.critic_ensemble,
         optimism=cfg.critic_optimism,
         output_weights=cfg.critic_output_weights,
+        target=cfg.critic_target,
     )
     return CriticFitness(
         FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)
@@ -335,6 +345,7 @@ register_method(
     "fitness critic, max over the trajectory, inexact updates (the paper's best)",
     "Sec. 3.1, 3.3 (Eqs. 3, 6, 9-10)",
     critic=True,
+    pair_replay=True,
 )
 register_method(
     "max-critic-regular",
@@ -349,6 +360,7 @@ register_method(
     "fitness critic, mean over the trajectory, inexact updates",
     "Sec. 3.1, 3.3 (Eqs. 4, 6, 9-10)",
     critic=True,
+    pair_replay=True,
 )
 
 

@@ -31,12 +31,16 @@ import numpy as np
 
 from physrover.config import check
 from physrover.core.registry import CREDITS
-from physrover.domain.scoring.difference import d_plus_plus
+from physrover.domain.scoring.difference import d_plus_plus, step_credits
 from physrover.domain.scoring.influence import indirect_difference
 
 
 class Credit:
     """An immediate feedback signal; see the module docstring."""
+
+    per_step_defined = False
+    """Whether :meth:`per_step` gives the signal at every step (a fitness critic's per-step
+    targets, ``[learn] critic_target = "step"``)."""
 
     def __call__(self, world) -> np.ndarray:
         """(E, R) float64 feedback of each rover of each team for the episode ``world`` just
@@ -48,26 +52,46 @@ class Credit:
         not defined for ``domain`` (a :class:`~physrover.config.DomainConfig`); a run's
         config calls it when it is built. Every domain, by default."""
 
+    def per_step(self, world) -> np.ndarray:
+        """(T + 1, E, R) float64: the signal of each step taken alone (row t: step t's
+        record), for signals with ``per_step_defined``."""
+        raise NotImplementedError(f"{type(self).__name__} has no per-step form")
+
 
 class Difference(Credit):
     """D of Eq. 1, the paper's immediate feedback."""
 
+    per_step_defined = True
+
     def __call__(self, world) -> np.ndarray:
         return world.D
+
+    def per_step(self, world) -> np.ndarray:
+        return step_credits(world.state, world.n_req, "D")
 
 
 class TeamScore(Credit):
     """G (Eq. 11) for every rover of the team."""
 
+    per_step_defined = True
+
     def __call__(self, world) -> np.ndarray:
         return np.repeat(world.G[:, None], world.n_rovers, axis=1)
+
+    def per_step(self, world) -> np.ndarray:
+        return step_credits(world.state, world.n_req, "G")
 
 
 class DPlusPlus(Credit):
     """D++ (Rahmattalabi et al. 2016): :func:`physrover.domain.scoring.difference.d_plus_plus`."""
 
+    per_step_defined = True
+
     def __call__(self, world) -> np.ndarray:
         return d_plus_plus(world.state, world.n_req)
+
+    def per_step(self, world) -> np.ndarray:
+        return step_credits(world.state, world.n_req, "D++")
 
     def check(self, domain) -> None:
         """D++'s partners complete couplings at any step: not defined for ordered (``after``),

@@ -4,7 +4,9 @@ D (Eq. 1) and D++.
 - Eq. 11: ``G = sum_k V_k max_t I_kt``: each POI counts once, whenever it was captured;
 - Eq. 1 with the null counterfactual (paper Section 4.2): ``D_i = G(z) - G(z_-i)``, where
   ``z_-i`` removes rover i's whole trajectory: a POI counts for ``G(z_-i)`` if at some
-  scored step its coupling is met *without* rover i.
+  scored step its coupling is met *without* rover i;
+- beyond the paper, :func:`step_credits`: G, D or D++ of every step taken alone (a critic's
+  per-step target, ``[learn] critic_target = "step"``).
 
 The compiled step (:func:`physrover.domain.scoring.captures.score_team`) keeps the captures
 with and without each rover in the world's :class:`~physrover.domain.state.WorldState`, so
@@ -13,6 +15,8 @@ D is read off at any step (O(E R K)); the per-step record ``in_range`` (O(T E R 
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -75,3 +79,53 @@ def d_plus_plus(state, n_req: np.ndarray) -> np.ndarray:
         result[take] = gains[n][take]
         undecided &= ~take
     return result
+
+
+class _Steps(NamedTuple):
+    """Each step of an episode taken alone as an episode of one scored step: the fields of
+    :class:`~physrover.domain.state.WorldState` that :func:`difference` and
+    :func:`d_plus_plus` read, with the (step, team) pairs as the teams."""
+
+    in_range: np.ndarray  # (1, S E, R, K)
+    captured: np.ndarray  # (S E, K)
+    captured_without: np.ndarray  # (S E, R, K)
+    score: np.ndarray  # (S E,)
+    poi_values: np.ndarray  # (S E, K)
+
+
+def step_credits(state, n_req: np.ndarray, signal: str) -> np.ndarray:
+    """(T + 1, E, R) the credit ``signal`` ("G", "D" or "D++") of every rover at each step
+    t taken alone: the credit of a one-step episode whose only scored step is t, so G_t is
+    ``sum_k V_k I_kt`` (Eq. 11 with the max over t dropped), D_t = G_t minus G_t without
+    rover i (Eq. 1) and D++_t the same rule as :func:`d_plus_plus` with partners at step t.
+
+    Beyond the paper (issue 46, lever 1): the per-pair target of a critic fitted step by step
+    (``[learn] critic_target = "step"``), non-zero at the steps where a rover is near a POI
+    (D++: even before a coupling forms), where the episode's D is the same number for every
+    pair. Reads ``state.in_range`` (T + 1, E, R, K), ``state.poi_values`` and each POI's
+    ``n_req`` (K,); for POIs not scored by a rule (every step scored alike, Eq. 12).
+    """
+    near = np.asarray(state.in_range)
+    steps, n_teams, n_rovers, n_pois = near.shape
+    flat = near.reshape(steps * n_teams, n_rovers, n_pois)
+    values = np.broadcast_to(state.poi_values, (steps, n_teams, n_pois))
+    values = values.reshape(steps * n_teams, n_pois)
+    count = flat.sum(axis=1, dtype=np.int64)  # (S E, K)
+    captured = count >= n_req
+    if signal == "G":
+        score = team_score(captured, values)
+        return np.repeat(score.reshape(steps, n_teams)[..., None], n_rovers, axis=-1)
+    alone = _Steps(
+        in_range=flat[None],
+        captured=captured,
+        captured_without=(count[:, None, :] - flat) >= n_req,
+        score=team_score(captured, values),
+        poi_values=values,
+    )
+    if signal == "D":
+        credit = difference(alone)
+    elif signal == "D++":
+        credit = d_plus_plus(alone, n_req)
+    else:
+        raise ValueError(f"step credits are G, D or D++, not {signal!r}")
+    return credit.reshape(steps, n_teams, n_rovers)
