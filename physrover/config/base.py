@@ -69,8 +69,8 @@ def coerce(field: str, annotation: Any, value: Any) -> Any:
         return value
     if annotation is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            if isinstance(value, float) and value.is_integer():
-                return int(value)
+            if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
+                return int(value)  # 3.0 is 3; 1e300 is no count
             raise ConfigError(field, f"expected an integer, got {value!r}")
         return int(value)
     if annotation is bool:

@@ -291,7 +291,7 @@ class LearnConfig(ConfigBase):
         check(
             1 <= self.n_individual_elites < self.population,
             "n_individual_elites",
-            f"must be in [1, population) = [1, {self.population}) (the champion is elite 0), "
-            f"got {self.n_individual_elites}",
+            f'must be in [1, population) = [1, {self.population}) under selection = "elites" '
+            f"(the champion is elite 0), got {self.n_individual_elites}",
         )
         check(self.n_team_elites >= 0, "n_team_elites", f"must be >= 0, got {self.n_team_elites}")

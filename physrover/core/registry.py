@@ -19,6 +19,8 @@ T = TypeVar("T")
 
 def did_you_mean(name: str, known: Iterable[str]) -> str:
     """`` (did you mean 'a' or 'b'?)`` for the known names closest to ``name``, or ``""``."""
+    if not isinstance(name, str):  # a number or a list where a name belongs
+        return ""
     known = list(known)
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
     if not close:  # a case slip (``d`` for ``D``) or a missing separator (``nreq``)
@@ -68,8 +70,9 @@ class Registry(Generic[T]):
     def unknown_message(self, name: str, more: str = "") -> str:
         """``unknown KIND 'NAME' (did you mean ...); known: a, b`` + ``more``, and where a
         researcher's own part comes from (its module must be imported to register it)."""
+        shown = repr(name) if isinstance(name, str) else f"{name!r} (not a name)"
         return (
-            f"unknown {self.kind} {name!r}{did_you_mean(name, self.names())}; "
+            f"unknown {self.kind} {shown}{did_you_mean(name, self.names())}; "
             f"known: {', '.join(self.names())}{more} (one of your own: its module registers "
             "it when imported, e.g. physrover --import my_parts.py)"
         )
@@ -81,7 +84,7 @@ class Registry(Generic[T]):
             raise KeyError(self.unknown_message(name)) from None
 
     def __contains__(self, name: object) -> bool:
-        return name in self._entries
+        return isinstance(name, str) and name in self._entries  # a list from TOML: not a name
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._entries)
