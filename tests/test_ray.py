@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 from conftest import comparable_rows
 
-from physrover.experiment import execute
+from physrover.experiment import on_ray
 from physrover.experiment.execute import run_sweep
 from physrover.experiment.store import read_metrics
 from physrover.experiment.sweep import Sweep
@@ -76,8 +76,8 @@ def test_ray_started_here_keeps_every_socket_on_loopback():
     if ray.is_initialized():
         ray.shutdown()
     handler = signal.getsignal(signal.SIGTERM)
-    with execute._ray_on_loopback():
-        execute._connect_ray(ray, "local", 1)
+    with on_ray._ray_on_loopback():
+        on_ray._connect_ray(ray, "local", 1)
         try:
             # A task starts a worker process: its sockets count too.
             assert ray.get(ray.remote(lambda: os.getpid()).remote()) > 0
@@ -146,6 +146,7 @@ class Cluster:
         self.env.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN_PATH=str(token),
                         RAY_USAGE_STATS_ENABLED="0")  # fmt: skip
         self.temp = Path(os.path.realpath("/tmp")) / f"prt{tag}"  # Ray's sockets: short paths
+        self.starts = 0
 
     def start(self) -> None:
         veth_head, veth_worker = f"prh{os.getpid()}", f"prw{os.getpid()}"
@@ -158,13 +159,25 @@ class Cluster:
             _ip("-n", name, "addr", "add", f"{address}/24", "dev", veth)
             _ip("-n", name, "link", "set", veth, "up")
             _ip("-n", name, "link", "set", "lo", "up")
+        self.start_ray()
+
+    def start_ray(self) -> None:
+        """Ray's head node, then its worker node (again, after :meth:`kill_ray`)."""
+        self.starts += 1
         common = ["--num-cpus=1", "--disable-usage-stats"]
         self.exec(self.head, str(BIN / "ray"), "start", "--head", f"--node-ip-address={HEAD_IP}",
-                  f"--port={PORT}", "--include-dashboard=false", f"--temp-dir={self.temp}h",
-                  *common)  # fmt: skip
+                  f"--port={PORT}", "--include-dashboard=false",
+                  f"--temp-dir={self.temp}h{self.starts}", *common)  # fmt: skip
         worker = [f"--address={HEAD_IP}:{PORT}", f"--node-ip-address={WORKER_IP}"]
-        self.exec(self.worker, str(BIN / "ray"), "start", *worker, f"--temp-dir={self.temp}w",
-                  *common)  # fmt: skip
+        self.exec(self.worker, str(BIN / "ray"), "start", *worker,
+                  f"--temp-dir={self.temp}w{self.starts}", *common)  # fmt: skip
+
+    def kill_ray(self, namespace: str, spare: set[int] = frozenset()) -> None:
+        """SIGKILL every process in ``namespace`` but ``spare``: the node is lost."""
+        for pid in {int(p) for p in _ip("netns", "pids", namespace, check=False).stdout.split()}:
+            if pid not in spare:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
 
     def exec(self, namespace: str, *command: str, timeout: float = 120) -> str:
         done = subprocess.run(["ip", "netns", "exec", namespace, *command], env=self.env,
@@ -186,8 +199,9 @@ class Cluster:
     def stop(self) -> None:
         for name in (self.head, self.worker):
             _kill_namespace(name)
-        for suffix in "hw":
-            shutil.rmtree(f"{self.temp}{suffix}", ignore_errors=True)
+        for start in range(1, self.starts + 1):
+            for node in "hw":
+                shutil.rmtree(f"{self.temp}{node}{start}", ignore_errors=True)
 
 
 def _netns_reason() -> str | None:
@@ -303,3 +317,50 @@ def test_a_two_node_cluster_gives_the_pools_results_and_survives_a_node_dying(cl
     assert resumed, "no run was resumed from a checkpoint after the node died"
     assert _metrics(runs) == _pool_reference(long, tmp_path / "pool")
     print(f"two-node cluster test: {time.monotonic() - start:.0f} s, resumed {resumed}")
+
+
+def _segments(runs: Path) -> dict[str, list[int]]:
+    """Each run's training segments: the generation each process started it from."""
+    return {p.name: [s["from_generation"] for s in
+                     json.loads((p / "provenance.json").read_text())["segments"]]
+            for p in sorted(runs.iterdir()) if p.is_dir()}  # fmt: skip
+
+
+def test_the_head_node_lost_mid_sweep_ends_in_one_line_and_a_new_head_resumes(cluster, tmp_path):
+    start = time.monotonic()
+    for node in (cluster.worker, cluster.head):  # both nodes up (a test before may kill one)
+        cluster.kill_ray(node)
+    cluster.start_ray()
+    sweep = _sweep_file(tmp_path, "headless", 3000)
+    runs = tmp_path / "cluster" / "headless"
+    process = cluster.sweep(sweep, tmp_path / "cluster")
+    deadline = time.monotonic() + 120
+    while True:  # both nodes train a run that has checkpointed
+        if process.poll() is not None or time.monotonic() > deadline:
+            pytest.fail(f"no run to interrupt: {process.communicate()[0][-3000:]}")
+        training = any("run_one" in c for c in _run_names(cluster.worker_pids()))
+        checkpointed = len(list(runs.glob("*/state.json"))) if runs.exists() else 0
+        if training and checkpointed >= 2:
+            break
+        time.sleep(0.05)
+    # The head node's Ray is lost (GCS, raylet and the run it trains); the driver lives on.
+    cluster.kill_ray(cluster.head, spare=_descendants(process.pid))
+    out, _ = process.communicate(timeout=60)
+    errors = [line for line in out.splitlines() if line.startswith("physrover: error:")]
+    assert process.returncode == 1 and len(errors) == 1, out[-3000:]
+    assert "lost the Ray cluster at" in errors[0] and "run the same command" in errors[0]
+    assert "Traceback" not in out, out[-3000:]
+    # A new head (the worker node's Ray restarts with it; alone it would give up on the old
+    # head after a minute, its run with it) and the same command: the sweep completes.
+    cluster.kill_ray(cluster.worker)
+    cluster.start_ray()
+    out = _finish(cluster.sweep(sweep, tmp_path / "cluster"))
+    assert "0 failed" in out, out[-2000:]
+    # Nothing lost or run twice: every run ends bit-identical to the pool's, each started
+    # from generation 0 once, every later segment resuming a checkpoint ahead of the last.
+    assert _metrics(runs) == _pool_reference(sweep, tmp_path / "pool")
+    segments = _segments(runs)
+    for name, starts in segments.items():
+        assert starts[0] == 0 and starts == sorted(set(starts)), (name, starts)
+    assert any(len(starts) > 1 for starts in segments.values()), segments
+    print(f"head-loss test: {time.monotonic() - start:.0f} s, segments {segments}")

@@ -29,6 +29,7 @@ from physrover.cli.commands import (
 from physrover.cli.reports import cmd_curves, cmd_results, cmd_table
 from physrover.config import ConfigError
 from physrover.core import plugins
+from physrover.experiment.on_ray import ClusterLost
 from physrover.experiment.store import RunError
 from physrover.viz.video import VideoError
 
@@ -345,6 +346,11 @@ def _run(args: argparse.Namespace) -> int:
     except (ConfigError, UsageError, RunError, VideoError, plugins.PluginError) as exc:
         print(f"physrover: error: {exc}", file=sys.stderr)
         return 2
+    except ClusterLost as exc:
+        print(f"\nphysrover: error: {exc}", file=sys.stderr)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(1)  # not Ray's exit hooks: they wait a minute for the lost head, then abort
     except Interrupted as exc:
         print(f"physrover: {exc}", file=sys.stderr)
         return 130

@@ -18,13 +18,13 @@ import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
-from physrover.config import ConfigError, RunConfig
+from physrover.config import RunConfig
 from physrover.core import plugins
 from physrover.core.progress import Progress
 from physrover.core.threads import pin_threads
 from physrover.experiment.claims import HeldRun, RunHeld, claim, clear_run_dir, holder
+from physrover.experiment.on_ray import run_on_ray
 from physrover.experiment.store import drop_state
 from physrover.experiment.sweep import RunSpec, run_status
 
@@ -127,7 +127,7 @@ def run_sweep(
     while todo:
         held.clear()
         if ray_address:
-            _run_ray(todo, ray_address, record, bar, skipped, workers)
+            run_on_ray(todo, ray_address, record, bar, skipped, workers, run_one)
         else:
             _run_pool(todo, workers, record, bar, skipped, finished, failed)
         todo = _released([by_name[name] for name in held], held)
@@ -229,144 +229,3 @@ def _sigterm_as(action):
         yield
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
-
-
-RAY_RETRIES = 3
-"""How often Ray runs a run again whose node or worker process died (each attempt resumes
-the run from its last checkpoint, on the shared run root)."""
-
-
-def _run_ray(todo, address, record, bar, skipped, workers) -> None:
-    """The runs as Ray tasks, one CPU each. A task whose node dies is run again by Ray (up
-    to :data:`RAY_RETRIES` times) on a node that is alive, where :func:`run_one` resumes it
-    from its last checkpoint: every node must see the run root at the same path. A run Ray
-    gives up on is reported as failed and the others go on."""
-    with _ray_on_loopback() if address == "local" else contextlib.nullcontext():
-        _run_ray_tasks(todo, address, record, bar, skipped, workers)
-
-
-def _run_ray_tasks(todo, address, record, bar, skipped, workers) -> None:
-    try:
-        import ray
-    except ImportError:
-        raise ConfigError("--ray", "ray is not installed: pip install 'physrover[ray]'") from None
-    started_here = not ray.is_initialized()
-    main_thread = threading.current_thread() is threading.main_thread()
-    handlers = (
-        {n: signal.getsignal(n) for n in (signal.SIGINT, signal.SIGTERM)} if main_thread else {}
-    )
-    if started_here:
-        _connect_ray(ray, address, workers)
-    try:
-        task = ray.remote(num_cpus=1, max_retries=RAY_RETRIES, retry_exceptions=False)(run_one)
-        names = {task.remote(spec): spec.name for spec in todo}
-        pending = list(names)
-        while pending:
-            _display(bar, skipped + len(todo) - len(pending), min(workers, len(pending)), 0)
-            done, pending = ray.wait(pending, num_returns=1, timeout=1.0)
-            for ref in done:
-                try:
-                    record(ray.get(ref))
-                except ray.exceptions.RayError as error:  # its node died too often
-                    lines = str(error).strip().splitlines()
-                    record((names[ref], 0.0, lines[0] if lines else type(error).__name__))
-    finally:
-        if started_here:
-            ray.shutdown()
-        for number, handler in handlers.items():  # ray.init installs its own SIGTERM handler
-            signal.signal(number, handler)
-
-
-@contextlib.contextmanager
-def _ray_on_loopback():
-    """Inside, a Ray started here (``--ray local``) stays on 127.0.0.1: every server it
-    starts (GCS, raylet, workers, runtime-env agent) binds the loopback address instead of
-    all interfaces, so nothing of a sweep is reachable from the network.
-
-    Ray does so when it is told the machine is not a cluster node: the environment variable
-    ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0`` (Ray's own switch for laptops; its processes
-    read it from the environment they inherit). A user's own value is respected. If ray was
-    imported before, its driver read the variable already, so its constant is set too.
-    Both are restored on exit.
-    """
-    name = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
-    before = os.environ.get(name)
-    os.environ.setdefault(name, "0")
-    constants = sys.modules.get("ray._private.ray_constants")
-    flag = getattr(constants, "ENABLE_RAY_CLUSTER", None)
-    if constants is not None and os.environ[name] == "0":
-        constants.ENABLE_RAY_CLUSTER = False
-    try:
-        yield
-    finally:
-        if before is None:
-            os.environ.pop(name, None)
-        if constants is not None:
-            constants.ENABLE_RAY_CLUSTER = flag
-
-
-RAY_HELP = (
-    "start a cluster with `ray start --head` (it prints the address to pass) "
-    "or run here with --ray local"
-)
-
-
-def _check_reachable(address: str, timeout: float = 5.0) -> None:
-    """Fail at once, naming ``address``, when nothing listens there (Ray itself retries for
-    minutes). ``address``: ``host:port`` or ``ray://host:port``; others are left to Ray."""
-    import socket
-    from urllib.parse import urlsplit
-
-    target = urlsplit(address if "://" in address else f"tcp://{address}")
-    try:
-        host, port = target.hostname, target.port
-    except ValueError:
-        raise ConfigError("--ray", f"bad address {address!r} (expected HOST:PORT)") from None
-    if not host or port is None:
-        return
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
-    except OSError as exc:
-        reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
-        raise ConfigError(
-            "--ray", f"no Ray cluster answers at {address} ({reason}); {RAY_HELP}"
-        ) from None
-
-
-def _connect_ray(ray, address: str, workers: int, timeout: int = 30) -> None:
-    """``ray.init`` for ``address`` ("local" starts Ray here), failing within about
-    ``timeout`` seconds with one line instead of hanging or a traceback.
-
-    Ray must be initialised in the main thread, so the time limit is an alarm signal (on
-    platforms that have one, when called from the main thread).
-    """
-    if address != "local":
-        _check_reachable(address)
-    kwargs: dict[str, Any] = {"num_cpus": workers} if address == "local" else {}
-    if os.environ.get(plugins.ENV):  # the workers import the researcher's parts too
-        kwargs["runtime_env"] = {"env_vars": {plugins.ENV: os.environ[plugins.ENV]}}
-    alarm = (
-        address != "local"
-        and hasattr(signal, "SIGALRM")
-        and threading.current_thread() is threading.main_thread()
-    )
-
-    def give_up(signum, frame):
-        raise TimeoutError(f"no answer in {timeout} s")
-
-    previous = signal.signal(signal.SIGALRM, give_up) if alarm else None
-    if alarm:
-        signal.alarm(timeout)
-    try:
-        ray.init(address=None if address == "local" else address, include_dashboard=False,
-                 log_to_driver=False, logging_level="ERROR", **kwargs)  # fmt: skip
-    except Exception as error:  # Ray raises many kinds; the user needs one line
-        lines = str(error).strip().splitlines()
-        reason = lines[0] if lines else type(error).__name__
-        raise ConfigError(
-            "--ray", f"cannot connect to Ray at {address}: {reason}; {RAY_HELP}"
-        ) from None
-    finally:
-        if alarm:
-            signal.alarm(0)
-            signal.signal(signal.SIGALRM, previous)
