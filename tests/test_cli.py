@@ -437,3 +437,56 @@ def test_nothing_to_draw_is_said_without_a_field_prefix(tmp_path, capsys):
     assert main(["curves", str(run), "--out", str(tmp_path / "c.png")]) != 0
     err = capsys.readouterr().err.strip()
     assert err.startswith("physrover: error: no generation in ")
+
+
+def test_a_warning_is_named_by_the_package_that_raised_it(tmp_path, capsys):
+    """physrover's own warnings read "physrover: warning:"; another package's (TorchRL's
+    deprecations under `physrover benchmarl`) are named by that package, in one line."""
+    from physrover.cli.main import _show_warning, warning_origin
+
+    theirs = tmp_path / "lib" / "python3.11" / "site-packages" / "torchrl" / "envs" / "libs.py"
+    assert warning_origin(str(theirs)) == "torchrl"
+    assert warning_origin(str(tmp_path / "my_parts.py")) == "physrover"  # a researcher's file
+    import physrover.learn.ccea as ours
+
+    assert warning_origin(ours.__file__) == "physrover"
+    _show_warning(DeprecationWarning("old API\nsecond line"), DeprecationWarning, str(theirs), 3)
+    _show_warning(UserWarning("resuming from the previous checkpoint"), UserWarning,
+                  ours.__file__, 9)  # fmt: skip
+    assert capsys.readouterr().err.splitlines() == [
+        "torchrl: warning: old API",
+        "physrover: warning: resuming from the previous checkpoint",
+    ]
+
+
+def test_benchmarl_runs_stop_in_one_line_and_say_when_the_default_experiment_is_long():
+    from physrover.cli.benchmarl_cmd import run_experiment, runs_default_experiment
+    from physrover.cli.commands import Interrupted
+
+    class Experiment:
+        folder_name = "runs/benchmarl/mappo_rover_domain_mlp__x"
+
+        def run(self):
+            raise KeyboardInterrupt
+
+    with pytest.raises(Interrupted, match="interrupted; what BenchMARL wrote so far is in "
+                                          "runs/benchmarl/mappo_rover_domain_mlp__x"):  # fmt: skip
+        run_experiment(Experiment())
+    assert runs_default_experiment(["algorithm=masac", "task.n_req=1"])
+    assert not runs_default_experiment(["experiment=physrover_quick"])
+    assert not runs_default_experiment(["experiment.max_n_iters=5"])
+    assert runs_default_experiment(["experiments_note=1"])  # not the experiment group
+
+
+def test_the_venv_the_docs_make_inside_the_clone_is_ignored_by_git():
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    if shutil.which("git") is None or not (root / ".git").exists():
+        pytest.skip("needs a git checkout")
+    assert "python3 -m venv .venv-benchmarl" in (root / "docs/user-guide/torchrl-benchmarl.md"
+                                                 ).read_text()  # fmt: skip
+    done = subprocess.run(["git", "check-ignore", "-q", ".venv-benchmarl/bin/python"], cwd=root)
+    assert done.returncode == 0

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import argparse
 import csv
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from physrover.cli.commands import UsageError, next_free
+from physrover.cli.commands import Interrupted, UsageError, next_free
 from physrover.config import DomainConfig
 from physrover.core.threads import pin_threads
 
@@ -65,6 +66,30 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(lines)
 
 
+LONG_DEFAULT = (
+    "this is BenchMARL's own default experiment (millions of frames: hours on a laptop's "
+    "CPU, about 5 h on 2 cores for MAPPO); experiment=physrover_quick runs 20 iterations, "
+    "experiment.max_n_iters=N caps it"
+)
+
+
+def runs_default_experiment(overrides: list[str]) -> bool:
+    """Whether ``overrides`` leave BenchMARL's default experiment as it is (no
+    ``experiment=...`` and no ``experiment.FIELD=...``)."""
+    return not any(o.split("=", 1)[0].lstrip("+~").split(".")[0] == "experiment"
+                   for o in overrides)  # fmt: skip
+
+
+def run_experiment(experiment) -> None:
+    """``experiment.run()``; Ctrl-C ends it in one line naming its folder (what BenchMARL
+    wrote so far stays there), not BenchMARL's and TorchRL's tracebacks."""
+    try:
+        experiment.run()
+    except KeyboardInterrupt:
+        raise Interrupted(f"interrupted; what BenchMARL wrote so far is in "
+                          f"{experiment.folder_name}") from None  # fmt: skip
+
+
 def cmd_benchmarl(args: argparse.Namespace) -> int:
     try:
         from hydra.errors import HydraException
@@ -86,7 +111,9 @@ def cmd_benchmarl(args: argparse.Namespace) -> int:
     print(f"benchmarl: {experiment.algorithm_name} on {task.env_name()}/{task.name.lower()} "
           f"({experiment.config.get_max_n_iters(experiment.on_policy)} iterations) -> "
           f"{experiment.folder_name}")  # fmt: skip
-    experiment.run()
+    if runs_default_experiment(overrides):
+        print(f"physrover: note: {LONG_DEFAULT}", file=sys.stderr)
+    run_experiment(experiment)
     trained = last_value(Path(experiment.folder_name), "eval_reward_episode_reward_mean")
     floor = random_return(task.domain)
     shown = "no evaluation ran" if trained is None else f"{trained:.3f}"

@@ -12,6 +12,7 @@ import os
 import sys
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 from physrover.cli.benchmarl_cmd import cmd_benchmarl
 from physrover.cli.commands import (
@@ -326,8 +327,25 @@ def _subparser(parser: argparse.ArgumentParser, name: str | None):
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """A warning (a resume from the previous checkpoint, other code than the run's) in one
-    line, as errors are, not Python's file:line and source."""
-    print(f"physrover: warning: {message}", file=sys.stderr if file is None else file)
+    line, as errors are, not Python's file:line and source; one another package raised
+    (TorchRL's deprecations, say) is named by that package, not by physrover."""
+    first = str(message).strip().splitlines()[0] if str(message).strip() else category.__name__
+    print(
+        f"{warning_origin(filename)}: warning: {first}", file=sys.stderr if file is None else file
+    )
+
+
+def warning_origin(filename: str) -> str:
+    """The top-level package of the module ``filename`` (a path), "physrover" for ours and
+    for what is not in an installed package (a script, a researcher's own parts)."""
+    path = Path(filename).resolve()
+    if Path(__file__).resolve().parents[1] in path.parents:
+        return "physrover"
+    parts = path.parts
+    for marker in ("site-packages", "dist-packages"):
+        if marker in parts and parts.index(marker) + 1 < len(parts) - 1:
+            return parts[parts.index(marker) + 1]
+    return "physrover"
 
 
 def _run(args: argparse.Namespace) -> int:
