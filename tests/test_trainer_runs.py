@@ -9,7 +9,6 @@ from physrover.config import ConfigError, RunConfig
 from physrover.experiment.evaluate import evaluate_run
 from physrover.experiment.provenance import code_fingerprint, read_provenance
 from physrover.experiment.store import read_metrics
-from physrover.learn.ccea import stats_header
 from physrover.marl.common import Trainer
 
 TINY = ["--set", "n_rovers=3", "--set", "n_req=1", "--set", "steps=10",
@@ -25,9 +24,15 @@ def test_train_writes_a_run_directory_the_other_commands_read(method, tmp_path, 
     extra = MADDPG if method == "maddpg" else []
     assert main(["train", "--method", method, *TINY, *extra, "--out", str(out)]) == 0
     header = (out / "metrics.csv").read_text().splitlines()[0].split(",")
-    assert header == stats_header() + ["episodes", "env_steps"]
+    losses = {
+        "mappo": ["policy_loss", "value_loss", "entropy", "approx_kl", "clip_fraction", "std"],
+        "maddpg": ["critic_loss", "actor_loss", "q_mean", "updates"],
+    }
+    assert header == ["iteration", "eval_G", "train_G_mean", *losses[method], "wall_seconds",
+                      "episodes", "env_steps"]  # fmt: skip
     rows = read_metrics(out / "metrics.csv")
-    assert [r["generation"] for r in rows] == [1, 2, 3, 4]
+    assert [r["iteration"] for r in rows] == [1, 2, 3, 4]
+    assert [r["generation"] for r in rows] == [1, 2, 3, 4]  # every reader's position
     assert [r["episodes"] for r in rows] == [4, 8, 12, 16]
     assert [r["env_steps"] for r in rows] == [40, 80, 120, 160]
     assert sorted(p.name for p in (out / "champions").iterdir()) == [
@@ -111,3 +116,35 @@ def test_curves_never_pool_trainer_runs_of_different_hyper_parameters(tmp_path):
         runs.append(out)
     table = curve_table(load_runs(runs))
     assert sorted(table) == ["mappo mappo.lr=0.001", "mappo mappo.lr=0.003"]
+
+
+def test_a_run_of_physrover_0_5_resumes_in_its_own_columns(tmp_path, monkeypatch):
+    """Trainer runs of 0.4-0.5 wrote the CCEA's columns (generation = iteration,
+    critic_loss = the value loss, fitness_mean NaN): they resume in them, to the same
+    numbers as a new run's."""
+    from physrover.experiment import trainer_runs
+
+    new = tmp_path / "new"
+    assert main(["train", "--method", "mappo", *TINY, "--out", str(new)]) == 0
+    old = tmp_path / "old"
+    real = Trainer.iteration
+
+    def crash_after_2(self):
+        if self.iterations == 2:
+            raise KeyboardInterrupt
+        return real(self)
+
+    legacy = trainer_runs.LEGACY_COLUMNS
+    monkeypatch.setattr(trainer_runs, "trainer_columns", lambda cls: legacy)  # 0.5's writer
+    monkeypatch.setattr(Trainer, "iteration", crash_after_2)
+    assert main(["train", "--method", "mappo", *TINY, "--out", str(old)]) == 130
+    monkeypatch.undo()
+    assert (old / "metrics.csv").read_text().startswith(",".join(legacy))
+    assert main(["train", "--resume", str(old), "--quiet"]) == 0
+    assert (old / "metrics.csv").read_text().splitlines()[0] == ",".join(legacy)
+    got, want = read_metrics(old / "metrics.csv"), read_metrics(new / "metrics.csv")
+    assert [r["generation"] for r in got] == [1, 2, 3, 4]
+    for a, b in zip(got, want, strict=True):
+        assert (a["eval_G"], a["train_G_mean"], a["episodes"]) == \
+            (b["eval_G"], b["train_G_mean"], b["episodes"])  # fmt: skip
+        assert a["critic_loss"] == b["value_loss"]

@@ -118,9 +118,10 @@ class TensorBoardLog:
             ) from None
 
     def write_row(self, row: dict) -> None:
-        """One metrics row ({column: value}, with ``generation`` the step)."""
+        """One metrics row ({column: value}, its first column the step: ``generation``, or a
+        trainer's ``iteration``)."""
         row = dict(row)
-        step = row.pop("generation")
+        step = row.pop(next(iter(row)))
         for name, value in row.items():
             self.writer.add_scalar(name, value, global_step=step)
 

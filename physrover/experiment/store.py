@@ -24,10 +24,8 @@ with ``state()``, ``load_state()``, ``generation`` and ``champion_genomes()``.
 from __future__ import annotations
 
 import contextlib
-import csv
 import io
 import json
-import math
 import os
 import re
 import tempfile
@@ -39,6 +37,12 @@ import numpy as np
 
 from physrover.config import ConfigError, RunConfig
 from physrover.core import plugins
+from physrover.experiment.metrics_file import (  # noqa: F401  (read_metrics: the store's too)
+    format_value,
+    metrics_columns,
+    metrics_text,
+    read_metrics,
+)
 from physrover.experiment.provenance import PROVENANCE, read_provenance, with_segment
 from physrover.learn.ccea import stats_header
 
@@ -289,25 +293,6 @@ def resume_run(out: Path, learner, header: list[str]) -> list[dict]:
     return rows
 
 
-def read_metrics(path: Path) -> list[dict[str, float]]:
-    """The rows of a metrics.csv, generations counted from 1.
-
-    physrover 0.1.0 counted the rows' generations from 0; such files (first row 0) are read
-    shifted by one, so old and new runs plot on one axis. A last line without its line end
-    (a process killed while writing it) is not a row.
-    """
-    with open(path, newline="") as f:
-        text = f.read()
-    lines = text.splitlines(keepends=True)
-    if lines and not lines[-1].endswith("\n"):
-        lines.pop()
-    rows = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(lines)]
-    if rows and rows[0]["generation"] == 0:
-        for row in rows:
-            row["generation"] += 1
-    return rows
-
-
 def last_checkpoint(run_dir: Path) -> int | None:
     """Generations completed at the run's latest checkpoint, or None if it has none."""
     try:
@@ -317,21 +302,8 @@ def last_checkpoint(run_dir: Path) -> int | None:
 
 
 def write_metrics(path: Path, rows: list[dict], header: list[str] | None = None) -> None:
-    header = header or stats_header()
-    text = io.StringIO(newline="")
-    writer = csv.DictWriter(text, fieldnames=header)
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: format_value(row[k]) for k in header})
-    atomic_write(path, text.getvalue())
-
-
-def format_value(value: float) -> str:
-    if isinstance(value, int) or (
-        isinstance(value, float) and value.is_integer() and abs(value) < 1e15
-    ):
-        return str(int(value))
-    return "nan" if isinstance(value, float) and math.isnan(value) else repr(float(value))
+    """metrics.csv at ``path``: ``header`` (default the CCEA's) and ``rows``, atomically."""
+    atomic_write(path, metrics_text(rows, header or stats_header()))
 
 
 def prepare_run_dir(out: Path, config: RunConfig, header: list[str] | None = None) -> None:

@@ -4,11 +4,17 @@ The same layout as a CCEA run (:mod:`physrover.experiment.store`): config.toml (
 trainer's table, e.g. ``[mappo]``), metrics.csv, ``champions/gen_N.npy`` (the current
 policies as CCEA genomes, so ``render`` and ``evaluate`` play them), state.npz/state.json
 (networks, optimisers, replay buffer, every generator), and a resumed run bit-identical to
-an uninterrupted one. A row of metrics.csv is one iteration (``generation`` counts
-iterations, from 1) with the CCEA's columns plus ``episodes`` and ``env_steps``: training
-episodes and team steps so far, the axis ``physrover curves --x episodes`` draws.
-``fitness_mean`` is NaN (there is none); ``critic_loss`` is the value loss (MAPPO) or the
-critics' loss (MADDPG). The run's length is the trainer's ``total_episodes``.
+an uninterrupted one; trained by the one run loop (:mod:`physrover.experiment.training`).
+
+A row of metrics.csv is one iteration, in columns named for what they hold:
+``iteration`` (from 1), ``eval_G``, ``train_G_mean``, the trainer's own losses
+(``Trainer.STATS``: MAPPO's and IPPO's ``policy_loss``, ``value_loss``, ``entropy``,
+``approx_kl``, ``clip_fraction``, ``std``; MADDPG's ``critic_loss``, ``actor_loss``,
+``q_mean``, ``updates``), ``wall_seconds``, then ``episodes`` and ``env_steps`` (training
+episodes and team steps so far, the axis ``physrover curves --x episodes`` draws). The
+run's length is the trainer's ``total_episodes``. Runs of physrover 0.4 and 0.5 wrote the
+CCEA's columns instead (:data:`LEGACY_COLUMNS`: ``generation`` holding the iteration,
+``critic_loss`` the value loss, ``fitness_mean`` NaN); they resume in their own columns.
 """
 
 from __future__ import annotations
@@ -17,65 +23,51 @@ import math
 from pathlib import Path
 
 from physrover.config import RunConfig
-from physrover.core.progress import Progress
 from physrover.core.registry import TRAINERS
-from physrover.experiment.loop import TensorBoardLog, write_rows
-from physrover.experiment.store import (
-    load_run_config,
-    prepare_run_dir,
-    record_provenance,
-    resume_run,
-)
+from physrover.experiment.store import METRICS, metrics_columns
 from physrover.learn.ccea import stats_header
 
-EXTRA_COLUMNS = ["episodes", "env_steps"]
+LEGACY_COLUMNS = stats_header() + ["episodes", "env_steps"]
+"""metrics.csv columns of a trainer's run made by physrover 0.4 or 0.5."""
 
 
-def metrics_header() -> list[str]:
-    """metrics.csv columns of a trainer's run: the CCEA's, then episodes and env_steps."""
-    return stats_header() + EXTRA_COLUMNS
+def trainer_columns(trainer_class) -> list[str]:
+    """metrics.csv columns of a run of ``trainer_class`` (module docstring)."""
+    return ["iteration", "eval_G", "train_G_mean", *trainer_class.STATS, "wall_seconds",
+            "episodes", "env_steps"]  # fmt: skip
 
 
-def metrics_row(stats: dict) -> dict:
-    """A metrics.csv row from the dict a trainer's ``iteration()`` returns."""
-    loss = stats.get("value_loss", stats.get("critic_loss", math.nan))
-    return {
-        "generation": int(stats["iteration"]),
-        "eval_G": float(stats.get("eval_G", math.nan)),
-        "train_G_mean": float(stats["train_G_mean"]),
-        "fitness_mean": math.nan,
-        "critic_loss": float(loss),
-        "wall_seconds": float(stats["wall_seconds"]),
+def trainer_row(stats: dict, columns: list[str]) -> dict:
+    """A metrics.csv row in ``columns`` from the dict a trainer's ``iteration()`` returns
+    (in :data:`LEGACY_COLUMNS` for a run of physrover 0.4-0.5)."""
+    if columns == LEGACY_COLUMNS:
+        loss = stats.get("value_loss", stats.get("critic_loss", math.nan))
+        stats = {**stats, "generation": stats["iteration"], "fitness_mean": math.nan,
+                 "critic_loss": loss}  # fmt: skip
+    return {name: float(stats.get(name, math.nan)) for name in columns} | {
+        columns[0]: int(stats["iteration"]),
         "episodes": int(stats["episodes"]),
         "env_steps": int(stats["env_steps"]),
     }
 
 
-def train_trainer(
-    config: RunConfig,
-    out: str | Path,
-    *,
-    resume: bool,
-    progress: bool,
-    tensorboard: bool,
-    on_resumed=None,
-) -> Path:
-    """Train (or continue, with ``resume``) a gradient-based baseline in run directory ``out``."""
-    out = Path(out)
-    if resume:
-        config = load_run_config(out)
-    else:
-        prepare_run_dir(out, config, metrics_header())
-    spec = TRAINERS[config.learn.method]
-    trainer = spec.load()(config.trainer, config.domain)
-    rows = resume_run(out, trainer, metrics_header()) if resume else []
-    if resume and on_resumed:  # training.train's, once the checkpoint has loaded
-        on_resumed(trainer.iterations)
-    record_provenance(out, trainer.iterations, trainer.total_iterations)
-    log = TensorBoardLog(out) if tensorboard else None
-    total = trainer.total_iterations
-    label = f"{config.learn.method} iteration"
-    bar = Progress(total, label, trainer.iterations, unit="it") if progress else None
-    write_rows(out, trainer, lambda: metrics_row(trainer.iteration()), metrics_header(), rows,
-               total, config.learn.checkpoint_every, log, bar, unit="iteration")  # fmt: skip
-    return out
+class TrainerLearner:
+    """A gradient-based trainer as the run loop drives it (:class:`RunLearner`)."""
+
+    unit, bar_unit, warms_up = "iteration", "it", False
+
+    def __init__(self, config: RunConfig, out: Path, resume: bool):
+        self.config = config
+        self.trainer_class = TRAINERS[config.learn.method].load()
+        own = metrics_columns(out / METRICS) if resume else None
+        self.columns = own if own == LEGACY_COLUMNS else trainer_columns(self.trainer_class)
+        self.label = f"{config.learn.method} iteration"
+        self.total = config.trainer.total_iterations
+        self.model = None
+
+    def build(self):
+        self.model = self.trainer_class(self.config.trainer, self.config.domain)
+        return self.model
+
+    def next_row(self) -> dict:
+        return trainer_row(self.model.iteration(), self.columns)

@@ -1,14 +1,17 @@
 """Training a run: :func:`train` starts a run in a new (or empty) directory, or continues one
 with ``resume=True``; a resumed run ends bit-identical to an uninterrupted one with the same
-seed. The CCEA trains here; a gradient-based trainer's run goes to
-:mod:`physrover.experiment.trainer_runs`. Both use the store
-(:mod:`physrover.experiment.store`) and the loop (:mod:`physrover.experiment.loop`).
+seed. One run loop for every learner (:func:`_train_claimed`): the CCEA
+(:class:`CCEALearner`) and the gradient-based trainers
+(:class:`~physrover.experiment.trainer_runs.TrainerLearner`), each with its own metrics
+columns, on the store (:mod:`physrover.experiment.store`) and the loop
+(:mod:`physrover.experiment.loop`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Protocol
 
 from physrover.config import ConfigError, RunConfig
 from physrover.core.progress import Progress
@@ -84,37 +87,80 @@ def train(
                               on_resumed)  # fmt: skip
 
 
+class CCEALearner:
+    """The CCEA as the run loop drives it (:class:`RunLearner`)."""
+
+    unit, bar_unit, warms_up = "generation", "gen", True
+
+    def __init__(self, config: RunConfig, on_generation=None):
+        self.config = config
+        self.columns = stats_header(curriculum=config.learn.curriculum_start > 0)
+        self.label = f"{config.learn.method} gen"
+        self.total = config.learn.generations
+        self.on_generation = on_generation
+        self.model: CCEA | None = None
+        self.latest: GenerationStats | None = None
+
+    def build(self) -> CCEA:
+        self.model = CCEA(self.config)
+        return self.model
+
+    def next_row(self) -> dict:
+        self.latest = self.model.run_generation()
+        return stats_row(self.latest, self.columns)
+
+    def after_row(self) -> None:
+        if self.on_generation:
+            self.on_generation(self.latest)
+
+
+class RunLearner(Protocol):
+    """What the one run loop needs of a learner (the CCEA's :class:`CCEALearner`, a
+    trainer's :class:`~physrover.experiment.trainer_runs.TrainerLearner`): the metrics
+    ``columns`` (the first: its unit), the ``unit`` of a row ("generation", "iteration")
+    and of the progress bar, its ``total``, a ``build()`` that makes the model (whose
+    ``generation`` counts the rows done and whose ``state()`` / ``load_state()`` are the
+    checkpoints), and ``next_row()``, which advances it by one row."""
+
+    unit: str
+    bar_unit: str
+    warms_up: bool
+    label: str
+    columns: list[str]
+    total: int
+
+    def build(self): ...
+
+    def next_row(self) -> dict: ...
+
+
+def learner_for(config: RunConfig, out: Path, resume: bool, on_generation=None) -> RunLearner:
+    """The learner of ``config``: a gradient-based trainer's, else the CCEA's."""
+    if config.trainer is not None:
+        from physrover.experiment.trainer_runs import TrainerLearner
+
+        return TrainerLearner(config, out, resume)
+    return CCEALearner(config, on_generation)
+
+
 def _train_claimed(config: RunConfig, out: Path, resume: bool, progress: bool,
                    tensorboard: bool, on_generation, on_resumed) -> Path:  # fmt: skip
-    """:func:`train` once the run is claimed."""
-    if config.trainer is not None:  # a gradient-based baseline, not the CCEA
-        from physrover.experiment.trainer_runs import train_trainer
-
-        return train_trainer(config, out, resume=resume, progress=progress,
-                             tensorboard=tensorboard, on_resumed=on_resumed)  # fmt: skip
-    header = stats_header(curriculum=config.learn.curriculum_start > 0)
+    """:func:`train` once the run is claimed: the one run loop of every learner (prepare,
+    resume, provenance, progress, metrics, checkpoints and stops)."""
+    learner = learner_for(config, out, resume, on_generation)
     if not resume:
-        prepare_run_dir(out, config, header)
+        prepare_run_dir(out, config, learner.columns)
     log = TensorBoardLog(out) if tensorboard else None
-    total = config.learn.generations
-    bar = Progress(total, f"{config.learn.method} gen", unit="gen") if progress else None
-    if bar:  # the first world reset and generation compile (or load) the kernels
+    bar = Progress(learner.total, learner.label, unit=learner.bar_unit) if progress else None
+    if bar and learner.warms_up:  # the first world reset and generation compile the kernels
         bar.warm_up("loading compiled kernels" if _kernels_cached()
                     else "compiling kernels, first run only")  # fmt: skip
-    ccea = CCEA(config)
-    rows = resume_run(out, ccea, header) if resume else []
+    model = learner.build()
+    rows = resume_run(out, model, learner.columns) if resume else []
     if resume and on_resumed:
-        on_resumed(ccea.generation)
-    record_provenance(out, ccea.generation, total)
-
-    latest: list[GenerationStats] = []
-
-    def next_row() -> dict:
-        latest[:] = [ccea.run_generation()]
-        return stats_row(latest[0], header)
-
-    after = (lambda: on_generation(latest[0])) if on_generation else None
-    write_rows(out, ccea, next_row, header, rows, total,
+        on_resumed(model.generation)
+    record_provenance(out, model.generation, learner.total)
+    write_rows(out, model, learner.next_row, learner.columns, rows, learner.total,
                config.learn.checkpoint_every, log, bar, restart_clock=True,
-               after_row=after)  # fmt: skip
+               after_row=getattr(learner, "after_row", None), unit=learner.unit)  # fmt: skip
     return out

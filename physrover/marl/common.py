@@ -195,6 +195,9 @@ class Trainer:
 
     modules: dict[str, nn.Module]
     optimizers: dict[str, torch.optim.Optimizer]
+    STATS: tuple[str, ...] = ()
+    """The keys ``_train`` adds to an iteration's stats (its losses), in the order a run's
+    metrics.csv gives them columns (:mod:`physrover.experiment.trainer_runs`)."""
 
     def __init__(self, config: MARLConfig, domain: DomainConfig | None = None):
         self.config = config

@@ -201,6 +201,9 @@ class MADDPG(Trainer):
     ``state()`` / ``load_state()`` as there (the state includes the replay buffer).
     """
 
+    STATS = ("critic_loss", "actor_loss", "q_mean", "updates")
+    """The losses and diagnostics :meth:`iteration` returns beside the shared keys."""
+
     def __init__(self, config: MADDPGConfig, domain: DomainConfig | None = None):
         super().__init__(config, domain)
         R, n_obs, n_act = self.n_rovers, self.n_obs, self.n_act

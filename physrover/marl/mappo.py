@@ -99,6 +99,9 @@ class MAPPO(Trainer):
     the iteration's mini-batches); ``evaluate()``, ``state()`` / ``load_state()`` as there.
     """
 
+    STATS = ("policy_loss", "value_loss", "entropy", "approx_kl", "clip_fraction", "std")
+    """The losses and diagnostics :meth:`iteration` returns beside the shared keys."""
+
     def __init__(self, config: MAPPOConfig, domain: DomainConfig | None = None):
         super().__init__(config, domain)
         n_team_steps = config.num_envs * self.steps
