@@ -349,3 +349,49 @@ def test_the_classes_table_is_each_sensor_s_own_kernel():
             sensor.observe(world.state, domain.d_min, alone[..., : sensor.dim])
         np.testing.assert_array_equal(obs[:, rows], alone[:, rows], err_msg=agent.name)
         assert (obs[:, rows] != 0).any(), agent.name
+
+
+@pytest.mark.parametrize("compose", ["density", "average", "closest"])
+@pytest.mark.parametrize("measure", ["inverse-square", "linear"])
+@pytest.mark.parametrize(("sectors", "bearing"), [(4, "heading"), (6, "heading"), (5, "world")])
+def test_a_class_sensed_at_once_reads_what_each_agent_reads_bit_for_bit(
+    compose, measure, sectors, bearing
+):
+    """lidar_lanes.lidar_class (a class's agents as the lanes of one loop) against
+    lidar.lidar_rows (one agent at a time): the same float64 readings, bit for bit, for
+    every composition, measure and bearing, with agents on top of each other and on sector
+    boundaries, blocks by class, hidden, distance-limited and vanished POIs."""
+    from physrover.domain.sensing.lidar import COMPOSE, MEASURES, lidar_rows
+    from physrover.domain.sensing.lidar_lanes import lanes_scratch, lidar_class
+    from physrover.domain.state import WorldState
+
+    rng = np.random.default_rng([sectors, len(compose), len(measure)])
+    n_teams, n_agents, n_pois = 3, 9, 5
+    state = WorldState.zeros(n_teams, n_agents, n_pois)
+    state.rover_positions[:] = rng.integers(-4, 5, (n_teams, n_agents, 2)) * 0.5  # on grid lines
+    state.rover_positions[:, 3] = state.rover_positions[:, 2]  # two agents in one place
+    headings = rng.choice([0.0, math.pi / 2, -math.pi, 0.3], (n_teams, n_agents))
+    state.rover_headings[:] = headings
+    state.cos_h[:], state.sin_h[:] = np.cos(headings), np.sin(headings)
+    state.poi_positions[:] = rng.uniform(-3, 3, (n_teams, n_pois, 2))
+    state.poi_values[:] = rng.uniform(0.5, 4.0, (n_teams, n_pois))
+    state.captured[:] = rng.random((n_teams, n_pois)) < 0.4
+    agent_base = np.repeat([0, sectors, 2 * sectors], 3).astype(np.int64)  # three classes
+    poi_base, n_channels = 3 * sectors, 4 * sectors
+    visible = np.array([True, True, False, True, True])
+    poi_radius_sq = np.array([math.inf, 4.0, math.inf, 9.0, math.inf])
+    disappear = np.array([False, True, False, False, True])
+    radius_sq = 9.0 if measure == "linear" else math.inf
+    args = (0.25, sectors, radius_sq, COMPOSE.index(compose), MEASURES.index(measure), -1.0,
+            bearing == "world", agent_base, poi_base, visible, poi_radius_sq,
+            disappear)  # fmt: skip
+    for first, stop in [(0, 3), (3, 9), (0, 9)]:
+        want = np.full((n_teams, n_agents, n_channels + 1), 7.0)  # float64: every bit compared
+        got = want.copy()
+        lidar_rows(state, *args, first, stop, n_channels, want)
+        scratch = lanes_scratch(n_agents, n_channels)
+        for e in range(n_teams):
+            lidar_class(e, first, stop, state, *args, n_channels, scratch, got)
+        np.testing.assert_array_equal(got, want)
+        assert (want[:, first:stop, :n_channels] > 0).any()
+        assert (want[:, first:stop, :n_channels] == -1).any()
