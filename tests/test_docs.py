@@ -179,3 +179,43 @@ def test_roles_resolve_from_their_scope_as_python_would():
         "<code>step_team()</code></autoref> and <code>numpy.ndarray</code>"
     )
     assert unresolved == [("physrover.domain.step", "numpy.ndarray")]
+
+
+def test_the_results_page_table_is_the_committed_sweep_s():
+    """The table of Figs 4-7 on the Results page is fig7_long_final_vs_nreq.csv, rounded."""
+    import csv
+
+    rows = csv.DictReader((ROOT / "experiments/results/fig7_long_final_vs_nreq.csv").open())
+    final = {(r["group"], int(r["n_req"])): float(r["mean"]) for r in rows}
+    page = (DOCS / "results.md").read_text()
+    table = page[page.index("| coupling n_req |") :].split("\n\n")[0].splitlines()[2:]
+    methods = ["D", "average", "mean-critic", "max-critic"]
+    assert len(table) == 4
+    for line in table:
+        cells = [c.strip().strip("*") for c in line.strip("|").split("|")]
+        n_req = int(cells[0])
+        for method, cell in zip(methods, cells[1:], strict=True):
+            assert float(cell.split("+-")[0]) == round(final[method, n_req], 2), (method, n_req)
+
+
+def test_results_in_full_are_on_the_site_without_their_data():
+    """RESULTS.md is a page of the site (its links to the docs rewritten by docs/hooks.py),
+    its figures with it, the CSVs behind them not (46 MB the site never showed)."""
+    import importlib.util
+    from types import SimpleNamespace
+
+    config = (ROOT / "mkdocs.yml").read_text()
+    assert "assets/results/RESULTS.md" in config.split("nav:")[1]
+    assert "!assets/results/RESULTS.md" in config and "assets/results/**/*.csv" in config
+    spec = importlib.util.spec_from_file_location("hooks", DOCS / "hooks.py")
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    text = (ROOT / "experiments/results/RESULTS.md").read_text()
+    page = SimpleNamespace(file=SimpleNamespace(src_uri=hooks.RESULTS))
+    shown = hooks.on_page_markdown(text, page)
+    site_page = DOCS / "assets/results"
+    for target in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", shown):
+        if not re.match(r"[a-z]+://", target):
+            assert Path(os.path.normpath(site_page / target)).exists(), target  # as the site
+    other = SimpleNamespace(file=SimpleNamespace(src_uri="results.md"))
+    assert hooks.on_page_markdown(text, other) == text
