@@ -12,8 +12,6 @@ A team senses through one of two compiled paths (:mod:`physrover.domain.plan` pi
   with ``compose = "density"``, the inverse-square measure, heading bearing and ``empty =
   0``, which is that sensor bit for bit (its all-pairs sums).
 
-An all-pairs class senses as a whole, vectorised over its agents
-(:func:`physrover.domain.sensing.lidar_lanes.lidar_class`, the same readings bit for bit).
 A class whose sensor is neither built-in (a user's sensor, or a subclass of a built-in) is
 left out of the table (``compiled`` False) and observed from Python after the step.
 
@@ -40,7 +38,6 @@ from physrover.domain.agents.classes import class_rows, class_sensor
 from physrover.domain.broadphase import grid
 from physrover.domain.sensing.density import Density
 from physrover.domain.sensing.lidar import COMPOSE, MEASURES, Lidar, SensingView, lidar_agent
-from physrover.domain.sensing.lidar_lanes import lanes_scratch, lidar_class
 from physrover.domain.sensing.sensor import sensor_size
 
 LIDAR_GRID_MIN_POINTS = 64
@@ -164,15 +161,13 @@ class SensingScratch(NamedTuple):
     acc: np.ndarray
     count: np.ndarray
     near: np.ndarray
-    lanes: tuple  # lidar_lanes.lanes_scratch's
 
 
 @jit
 def sensing_scratch(sensing, n_agents):
     """Scratch of :func:`sense_classes` for teams of ``n_agents``."""
     return SensingScratch(np.zeros(sensing.max_channels), np.zeros(sensing.max_channels,
-                          np.int64), np.empty(n_agents, np.int64),
-                          lanes_scratch(n_agents, sensing.max_channels))  # fmt: skip
+                          np.int64), np.empty(n_agents, np.int64))  # fmt: skip
 
 
 @jit
@@ -214,7 +209,7 @@ def sense_classes(e, state, sensing, obs, scratch):
     """Every compiled class's readings for team ``e`` (:func:`lidar_agent`, the module
     docstring) into ``obs[e]`` (R, >= max_channels) float32, each row's columns past its
     class's size set to 0."""
-    acc, count, near, lanes = scratch
+    acc, count, near = scratch
     n_agents, width = state.cos_h.shape[1], obs.shape[2]
     cells = np.empty((0, 2), np.int64)
     starts = members = np.empty(0, np.int64)
@@ -229,20 +224,14 @@ def sense_classes(e, state, sensing, obs, scratch):
             if sensing.local[c]
             else np.int64(0)
         )
-        if not sensing.local[c]:  # all-pairs: the whole class at once (lidar_lanes)
-            lidar_class(e, sensing.first[c], sensing.stop[c], state, sensing.d_min_sq,
-                        sensing.n_sectors[c], sensing.radius_sq[c], sensing.compose[c],
-                        sensing.measure[c], sensing.empty[c], sensing.world[c],
-                        sensing.agent_base[c], sensing.poi_base[c], sensing.visible[c],
-                        sensing.poi_radius_sq[c], sensing.disappear[c], sensing.n_channels[c],
-                        lanes, obs)  # fmt: skip
         for i in range(sensing.first[c], sensing.stop[c]):
-            if sensing.local[c]:
-                n_near = _near(i, cells, nx, ny, starts, members, reach, near)
-                if n_near >= 0:
-                    _sense_agent(e, i, c, state, sensing, near, n_near, acc, count, obs)
-                else:
-                    _sense_agent(e, i, c, state, sensing, None, n_agents, acc, count, obs)
+            n_near = (
+                _near(i, cells, nx, ny, starts, members, reach, near) if sensing.local[c] else -1
+            )
+            if n_near >= 0:
+                _sense_agent(e, i, c, state, sensing, near, n_near, acc, count, obs)
+            else:
+                _sense_agent(e, i, c, state, sensing, None, n_agents, acc, count, obs)
             for q in range(sensing.n_channels[c], width):
                 obs[e, i, q] = 0.0
 
