@@ -22,7 +22,8 @@ from physrover.core.threads import pin_threads
 
 DEFAULTS = {"algorithm": "mappo", "task": "physrover/rover_domain",
             "experiment.loggers": "[csv]"}  # fmt: skip
-INSTALL = "pip install 'physrover[benchmarl]' (docs: user-guide/torchrl-benchmarl)"
+INSTALL = ("pip install 'physrover[benchmarl]', in a venv of its own with the CPU builds of "
+           "torch and torchvision (the docs' page 'TorchRL and BenchMARL' says how)")
 
 
 def with_defaults(overrides: list[str]) -> list[str]:
