@@ -219,3 +219,16 @@ def test_results_in_full_are_on_the_site_without_their_data():
             assert Path(os.path.normpath(site_page / target)).exists(), target  # as the site
     other = SimpleNamespace(file=SimpleNamespace(src_uri="results.md"))
     assert hooks.on_page_markdown(text, other) == text
+
+
+def test_the_site_keeps_identifiers_whole_and_names_each_section_once():
+    """Issue 44's layout points, as configuration a browser would show (checked by eye at
+    1400 px in headless Chromium): table cells never break an identifier mid-word, the API
+    reference section is its own index page (not a section and its first item of one name),
+    and the long pages are cut by subheadings."""
+    config = (ROOT / "mkdocs.yml").read_text()
+    assert "navigation.indexes" in config and "stylesheets/extra.css" in config
+    css = (DOCS / "stylesheets/extra.css").read_text()
+    assert "td code" in css and "white-space: nowrap" in css
+    for page in ("user-guide/training.md", "user-guide/watching.md"):
+        assert len(re.findall(r"^## ", (DOCS / page).read_text(), re.M)) >= 4, page
