@@ -22,8 +22,10 @@ from physrover.core.threads import pin_threads
 
 DEFAULTS = {"algorithm": "mappo", "task": "physrover/rover_domain",
             "experiment.loggers": "[csv]"}  # fmt: skip
-INSTALL = ("pip install 'physrover[benchmarl]', in a venv of its own with the CPU builds of "
-           "torch and torchvision (the docs' page 'TorchRL and BenchMARL' says how)")
+INSTALL = (
+    "pip install 'physrover[benchmarl]', in a venv of its own with the CPU builds of "
+    "torch and torchvision (the docs' page 'TorchRL and BenchMARL' says how)"
+)
 
 
 def with_defaults(overrides: list[str]) -> list[str]:

@@ -10,6 +10,8 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
 - ``"D++"``: D with counterfactual partners
   (:func:`physrover.domain.scoring.difference.d_plus_plus`), which credits a rover that
   would have completed a coupling with partners;
+- ``"D-partial"``: D where the team captured, else each rover's difference to how near
+  the team came to its couplings (an exploration credit, beyond the paper);
 - ``"ID"``, ``"ID-step"``: IndirectDifference (:mod:`physrover.domain.scoring.influence`),
   which credits an agent (a UAV) with the captures of the agents it was near.
 
@@ -31,7 +33,7 @@ import numpy as np
 
 from physrover.config import check
 from physrover.core.registry import CREDITS
-from physrover.domain.scoring.difference import d_plus_plus, step_credits
+from physrover.domain.scoring.difference import d_plus_plus, partial_difference, step_credits
 from physrover.domain.scoring.influence import indirect_difference
 
 
@@ -56,6 +58,14 @@ class Credit:
         """(T + 1, E, R) float64: the signal of each step taken alone (row t: step t's
         record), for signals with ``per_step_defined``."""
         raise NotImplementedError(f"{type(self).__name__} has no per-step form")
+
+
+def check_counted_pois(domain, signal: str) -> None:
+    """ConfigError (field ``feedback``) unless every POI of ``domain`` is captured by a count
+    of agents in range at any step: ``signal`` replays such counts."""
+    ruled = any(p.scored_by_rule for p in domain.pois)
+    check(not ruled, "feedback", f'{signal} is not defined for POIs with after, require or '
+          'score_at = "final" ([[pois]])')  # fmt: skip
 
 
 class Difference(Credit):
@@ -96,9 +106,20 @@ class DPlusPlus(Credit):
     def check(self, domain) -> None:
         """D++'s partners complete couplings at any step: not defined for ordered (``after``),
         typed (``require``) or final-state POIs."""
-        ruled = any(p.scored_by_rule for p in domain.pois)
-        check(not ruled, "feedback", 'D++ is not defined for POIs with after, require or '
-              'score_at = "final" ([[pois]])')  # fmt: skip
+        check_counted_pois(domain, "D++")
+
+
+class PartialCoupling(Credit):
+    """D where the team captured, else each rover's difference to the team's progress
+    toward its couplings (:func:`physrover.domain.scoring.difference.partial_difference`)."""
+
+    def __call__(self, world) -> np.ndarray:
+        return partial_difference(world.state, world.n_req)
+
+    def check(self, domain) -> None:
+        """Progress toward a coupling is a count of rovers in range: not defined for
+        ordered, typed or final-state POIs."""
+        check_counted_pois(domain, "D-partial")
 
 
 class IndirectDifference(Credit):
@@ -137,5 +158,6 @@ def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Cred
 register_credit("D", Difference())
 register_credit("G", TeamScore())
 register_credit("D++", DPlusPlus())
+register_credit("D-partial", PartialCoupling())
 register_credit("ID", IndirectDifference("trajectory"))
 register_credit("ID-step", IndirectDifference("step"))

@@ -6,7 +6,8 @@ D (Eq. 1) and D++.
   ``z_-i`` removes rover i's whole trajectory: a POI counts for ``G(z_-i)`` if at some
   scored step its coupling is met *without* rover i;
 - beyond the paper, :func:`step_credits`: G, D or D++ of every step taken alone (a critic's
-  per-step target, ``[learn] critic_target = "step"``).
+  per-step target, ``[learn] critic_target = "step"``), and :func:`partial_difference`, an
+  exploration credit for episodes without a capture.
 
 The compiled step (:func:`physrover.domain.scoring.captures.score_team`) keeps the captures
 with and without each rover in the world's :class:`~physrover.domain.state.WorldState`, so
@@ -129,3 +130,28 @@ def step_credits(state, n_req: np.ndarray, signal: str) -> np.ndarray:
     else:
         raise ValueError(f"step credits are G, D or D++, not {signal!r}")
     return credit.reshape(steps, n_teams, n_rovers)
+
+
+def partial_difference(state, n_req: np.ndarray) -> np.ndarray:
+    """(E, R) the partial-coupling credit: D where the team captured something, else the
+    difference each rover makes to how near the team came to its couplings.
+
+    Beyond the paper (issue 46, lever 4: an exploration credit that is not 0 while D is,
+    and gives way to D once captures occur). A POI's *progress* is the largest fraction of
+    its coupling met at one scored step, ``p_k = max_t min(1, c_kt / n_req_k)`` with
+    ``c_kt`` the rovers within its capture radius (Eq. 13); the soft score is ``sum_k V_k
+    p_k``; rover i's partial credit is the soft score minus the soft score without rover
+    i's trajectory (Eq. 1's null counterfactual on the soft score). In an episode with G >
+    0 the credit is D itself, so a team that captures is credited exactly as the paper's.
+    A rover alone at a POI of value V with coupling n earns V / n; each partner it joins
+    adds to the progress its presence makes. Reads ``state.in_range`` (T + 1, E, R, K),
+    the values and G; POIs without rules (every step scored alike).
+    """
+    near = np.asarray(state.in_range)  # (T + 1, E, R, K)
+    need = np.asarray(n_req, dtype=np.float64)
+    count = near.sum(axis=2, dtype=np.int64)  # (T + 1, E, K)
+    progress = np.minimum(1.0, count / need).max(axis=0)  # (E, K)
+    without = np.minimum(1.0, (count[:, :, None, :] - near) / need).max(axis=0)  # (E, R, K)
+    values = state.poi_values
+    soft = (progress * values).sum(-1)[:, None] - (without * values[:, None, :]).sum(-1)
+    return np.where(state.score[:, None] > 0, difference(state), soft)
