@@ -466,3 +466,34 @@ def test_a_legend_names_its_rows_generations_or_iterations():
         "max-critic (n=3, 20-generation moving mean)"
     )
     assert plots.curve_legend("D", {"n": 1, "smooth": 1, "method": "D"}) == "D (n=1)"
+
+
+@pytest.mark.parametrize("name", ["fig7_long_final_vs_nreq.csv", "fig4-6_long_curves_nreq5.csv",
+                                  "marl_curves_nreq3_250000.csv"])  # fmt: skip
+def test_a_committed_figure_redraws_from_its_csv_to_the_same_numbers(name, tmp_path):
+    """`physrover curves FILE.csv` draws a committed figure again from its numbers (its runs
+    are long gone): the table read back is the one written, byte for byte."""
+    import shutil
+
+    from physrover.analysis.redraw import read_table
+    from physrover.cli.main import main
+
+    source = Path(__file__).parent.parent / "experiments" / "results" / name
+    copy = tmp_path / name
+    shutil.copy(source, copy)
+    assert main(["curves", str(copy)]) == 0
+    assert copy.read_bytes() == source.read_bytes()
+    assert copy.with_suffix(".png").stat().st_size > 10_000
+    table = read_table(source)
+    assert len(table) >= 2 and all(len(cols["mean"]) == len(cols["ci"]) for cols in table.values())
+
+
+def test_a_csv_physrover_did_not_write_is_refused_in_one_line(tmp_path, capsys):
+    from physrover.cli.main import main
+
+    other = tmp_path / "other.csv"
+    other.write_text("a,b\n1,2\n")
+    assert main(["curves", str(other)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a CSV that physrover curves or results wrote" in err[0]
+    assert main(["curves", str(tmp_path / "missing.csv")]) == 2

@@ -138,7 +138,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("curves", help="learning curves (or final scores) with 95%% CI")
-    p.add_argument("run_dirs", nargs="+", help="run directories, or directories holding them")
+    p.add_argument(
+        "run_dirs",
+        nargs="+",
+        help="run directories, or directories holding them "
+        "(or a CSV it wrote: the figure drawn again from its numbers)",
+    )
     p.add_argument(
         "--out",
         help="output PNG (default: curves.png / final_FIELD.png beside the runs); CSV beside it",

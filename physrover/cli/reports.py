@@ -14,6 +14,17 @@ from physrover.experiment.store import CONFIG, find_runs
 def cmd_curves(args: argparse.Namespace) -> int:
     from physrover.analysis import plots
 
+    if args.run_dirs and all(str(p).endswith(".csv") for p in args.run_dirs):
+        from physrover.analysis.redraw import redraw  # a committed figure, from its numbers
+
+        if args.out and len(args.run_dirs) > 1:
+            raise UsageError("--out names one figure: redraw one CSV at a time")
+        for path in args.run_dirs:
+            if not Path(path).is_file():
+                raise UsageError(f"{path}: no such file")
+            result = redraw(path, args.out, args.title or "")
+            print(f"plot: {result.png}\nnumbers: {result.csv}")
+        return 0
     run_dirs = find_runs(args.run_dirs)
     if not run_dirs:
         raise UsageError("no run directories (with config.toml) found")
