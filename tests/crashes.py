@@ -8,7 +8,7 @@ safe.
 
     python tests/crashes.py faults ROOT GENERATION LEARNER    a run per fault at each step
                                                               of the checkpoint of GENERATION
-    python tests/crashes.py kill-loop RUN KILLS SEED   SIGKILL a run at random instants,
+    python tests/crashes.py kill-loop RUN KILLS SEED   SIGKILL a run at random points,
                                                        resuming it each time, KILLS times
 
 Both print one JSON line describing what they did; test_durability resumes and compares.
@@ -222,21 +222,31 @@ def kill_loop(out: Path, kills: int, seed: int, generations: int) -> dict:
         return 0
 
     assert _status(_child(uninterrupted)) == "exit 0"
+    # Each life is killed once the run has checkpointed a target generation, plus a random
+    # few milliseconds (so a kill falls anywhere in a generation: stepping, mid-write,
+    # between renames), or, with target 0, at once (while it starts or loads). The targets
+    # spread the kills over the generations left, so however slow the machine (a loaded
+    # CI runner starts a child in seconds), the run cannot end before the last kill: the
+    # last target leaves 10 generations, more than the few milliseconds after it can step.
     landed, lives, start = [], 0, time.monotonic()
-    window = 0.12  # seconds; longer while the kills find the run where the last one left it
     while len(landed) < kills:
         lives += 1
+        before = store.last_checkpoint(out) or 0
+        room = max(0, (generations - 10 - before) // (kills - len(landed)))
+        target = before + rng.randint(0, room)
         pid = _child(work)
-        time.sleep(rng.uniform(0.0, window))
+        deadline = time.monotonic() + 120.0
+        while (store.last_checkpoint(out) or 0) < target and time.monotonic() < deadline:
+            time.sleep(0.0005)
+        time.sleep(rng.uniform(0.0, 0.01))
         os.kill(pid, signal.SIGKILL)
-        if _status(pid) == "SIGKILL":
-            landed.append(store.last_checkpoint(out))
-            # a loaded machine (another test, a sweep) starts and steps the child slower:
-            # widen the window until the kills move along the run again
-            stuck = len(landed) > 1 and landed[-1] == landed[-2]
-            window = min(window * 1.5, 2.0) if stuck else max(window / 1.5, 0.12)
-        if lives > 10 * kills:
-            raise RuntimeError(f"only {len(landed)} kills landed in {lives} lives")
+        status = _status(pid)
+        if status != "SIGKILL":  # it finished (or failed) before the kill
+            raise RuntimeError(
+                f"life {lives} ended {status} at checkpoint "
+                f"{store.last_checkpoint(out)} after {len(landed)} kills"
+            )
+        landed.append(store.last_checkpoint(out))
     last = _status(_child(work))
     return {"kills": len(landed), "lives": lives, "checkpoints_at_kill": landed,
             "final": last, "seconds": time.monotonic() - start}  # fmt: skip
