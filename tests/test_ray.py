@@ -114,10 +114,13 @@ def _kill_namespace(name: str) -> None:
 
 
 def _remove_stale_namespaces() -> None:
-    """Namespaces an earlier run of this test left (killed before its own cleanup)."""
+    """Namespaces an earlier run of this test left (killed before its own cleanup): those
+    whose maker, the process whose pid ends their name, is gone. Another test session's
+    live cluster on the same machine is left alone."""
     for line in _ip("netns", "list", check=False).stdout.splitlines():
         name = line.split()[0] if line.split() else ""
-        if name.startswith(PREFIX):
+        maker = name.rsplit("-", 1)[-1]
+        if name.startswith(PREFIX) and not (maker.isdigit() and Path(f"/proc/{maker}").exists()):
             _kill_namespace(name)
 
 
