@@ -72,8 +72,9 @@ def ablation_table(sweep: Path, last: int) -> None:
     critic), per n_req the final G (mean +- 95% CI over seeds) and the critic's loss (its
     mean squared error over the last ``last`` generations, mean over seeds)."""
     from physrover.config import LearnConfig
+    from physrover.learn.configs import CriticConfig
 
-    paper = LearnConfig(method="max-critic").to_dict()
+    paper = {**LearnConfig(method="max-critic").to_dict(), **CriticConfig().to_dict()}
     # finished runs only: a run still going would be scored on its last generations so far
     runs = [
         r for r in plots.load_runs(find_runs([sweep]))

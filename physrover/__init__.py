@@ -40,7 +40,7 @@ from physrover.envs import ENV_ID, RoverEnv, RoverVectorEnv
 from physrover.learn.fitness import register_method
 from physrover.marl.configs import register_trainer  # trainers; no torch import
 
-__version__ = "0.5.0.dev0"
+__version__ = "0.6.0.dev0"
 __all__ = [
     "ConfigError",
     "DomainConfig",

@@ -27,10 +27,12 @@ from pathlib import Path
 
 GENERATIONS = 6
 CONFIG = dict(n_rovers=3, n_req=1, population=6, steps=15, method="max-critic",
-              checkpoint_every=2, eval_episodes=2, replay_pairs=400, seed=3,
+              checkpoint_every=2, eval_episodes=2, seed=3,
               generations=GENERATIONS)  # fmt: skip
-# The gradient-based trainers share the run directory's checkpoint: 6 iterations each.
-TRAINERS = {
+# The CCEA's max critic ([critic]), and the gradient-based trainers, which share the run
+# directory's checkpoint: 6 iterations each.
+LEARNERS = {
+    "ccea": dict(replay_pairs=400),
     "mappo": dict(method="mappo", num_envs=4, total_episodes=24, poi_ring_radius=5.0),
     "maddpg": dict(method="maddpg", num_envs=4, total_episodes=24, poi_ring_radius=5.0,
                    warmup_steps=40, batch_size=32, buffer_capacity=200, update_every=10),
@@ -45,7 +47,7 @@ def config(learner: str = "ccea"):
     """The run's config: the CCEA's (``ccea``) or a trainer's (``mappo``, ``maddpg``)."""
     from physrover.config import RunConfig
 
-    return RunConfig().with_overrides({**CONFIG, **TRAINERS.get(learner, {})})
+    return RunConfig().with_overrides({**CONFIG, **LEARNERS[learner]})
 
 
 def _child(work, errors: Path | None = None) -> int:

@@ -7,8 +7,9 @@ import numpy as np
 import oracles
 import pytest
 
-from physrover.config import ConfigError, LearnConfig
+from physrover.config import ConfigError, RunConfig
 from physrover.core.compiled import dims
+from physrover.learn.configs import CriticConfig
 from physrover.learn.critics import (
     CriticSettings,
     FitnessCritic,
@@ -137,11 +138,10 @@ def test_replay_buffer_keeps_the_newest_entries():
 def test_paper_capacities_hold_ten_generations():
     # k = 50 policies x 50 steps: regular stores 50 trajectories, inexact 2500 pairs per
     # generation; the paper's capacities (500, 25000) keep the last 10 generations.
-    from physrover.config import LearnConfig
+    from physrover.config import RunConfig
     from physrover.learn.fitness import Problem, make_method
 
-    cfg = LearnConfig(method="max-critic")
-    method = make_method(cfg, Problem(2, 50, 8, 2), np.random.default_rng(0))
+    method = make_method(RunConfig(), Problem(2, 50, 8, 2), np.random.default_rng(0))
     traj = np.zeros((2, 50, 50, 10), dtype=np.float32)
     for g in range(12):
         traj[...] = g
@@ -191,7 +191,7 @@ def test_top_k_fitness_is_the_mean_of_the_k_largest_values():
 
     import pytest
 
-    from physrover.config import ConfigError, LearnConfig
+    from physrover.config import ConfigError
     from physrover.learn.critics import CriticSettings, FitnessCritic
 
     settings = CriticSettings("max", "inexact", 4, 0.01, 1e-3, "sgd", 100, 5, 2)
@@ -204,9 +204,9 @@ def test_top_k_fitness_is_the_mean_of_the_k_largest_values():
     critic_1 = FitnessCritic(2, 6, 10, settings, np.random.default_rng(1))
     np.testing.assert_array_equal(critic_1.fitness(trajectories), values.max(-1))
     with pytest.raises(ConfigError, match="critic_top_k: a softer max is for the max critic"):
-        LearnConfig(method="mean-critic", critic_top_k=3)
+        RunConfig().with_overrides({"method": "mean-critic", "critic_top_k": 3})
     with pytest.raises(ConfigError, match="critic_top_k: must be >= 1"):
-        LearnConfig(critic_top_k=0)
+        CriticConfig(critic_top_k=0)
 
 
 def test_an_ensemble_values_pairs_by_mean_plus_optimism_times_spread():
@@ -262,14 +262,16 @@ def test_critics_share_a_buffer_as_if_it_were_copied():
 
 def test_ensemble_options_are_checked():
     with pytest.raises(ConfigError, match="critic_optimism: an ensemble's spread needs"):
-        LearnConfig(critic_optimism=1.0)
+        CriticConfig(critic_optimism=1.0)
     with pytest.raises(ConfigError, match="critic_ensemble: must be >= 1"):
-        LearnConfig(critic_ensemble=0)
-    assert LearnConfig(critic_ensemble=4, critic_optimism=1.0).critic_ensemble == 4
+        CriticConfig(critic_ensemble=0)
+    assert CriticConfig(critic_ensemble=4, critic_optimism=1.0).critic_ensemble == 4
     for field, value in (("critic_ensemble", 3), ("critic_output_weights", "trained"),
                          ("critic_step_input", True)):  # fmt: skip
-        with pytest.raises(ConfigError, match=f"{field}: changes the fitness critic"):
-            LearnConfig(method="D", **{field: value})
+        # a setting of the critic given to a method without one names both
+        with pytest.raises(ConfigError, match=f"{field}: is a setting of \\[critic\\] "
+                           r"\(mean-critic, max-critic.*not of method 'D'"):  # fmt: skip
+            RunConfig().with_overrides({"method": "D", field: value})
 
 
 @pytest.mark.parametrize("use_max, steps", [(True, 1), (True, 5), (False, 5)])
@@ -332,4 +334,4 @@ def test_the_trained_critic_starts_as_the_papers():
     np.testing.assert_array_equal(a.fitness(traj), b.fitness(traj))
     assert len(b.critics.params()) == 4 and b.moments.shape[-1] == a.moments.shape[-1] + 6
     with pytest.raises(ConfigError, match="critic_output_weights"):
-        LearnConfig(critic_output_weights="learned")
+        CriticConfig(critic_output_weights="learned")

@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from physrover.cli import build_parser
+from physrover.config import RunConfig
 
 ROOT = Path(__file__).parent.parent
 DOCS = ROOT / "docs"
@@ -47,6 +48,9 @@ def test_python_blocks_run(page, tmp_path, monkeypatch):
         assert len(metrics) == 1 + 20
         config = (tmp_path / "runs" / "extending" / "config.toml").read_text()
         assert '[scenario]\nkind = "line"' in config and 'kind = "poi-distances"' in config
+        blend = tmp_path / "runs" / "blend"  # a fitness method with its own settings
+        assert len((blend / "metrics.csv").read_text().splitlines()) == 1 + 5
+        assert RunConfig.load(blend / "config.toml").settings.weight == 0.25
         run = tmp_path / "runs" / "random-search"
         metrics = (run / "metrics.csv").read_text().splitlines()
         assert len(metrics) == 1 + 20 and metrics[-1].split(",")[-2:] == ["200", "10000"]

@@ -323,7 +323,8 @@ def test_a_few_long_legend_entries_stay_inside_the_figure(tmp_path, figures):
     # past the figure's left edge, its entries cut off.
     fields = {"trajectory_batch": 8, "trajectory_batches": 4, "trajectory_hidden": 16}
     runs = [_fake_run(tmp_path, "a", "max-critic", 5, [1.0, 2.0]),
-            _fake_run(tmp_path, "b", "recurrent-max-critic", 5, [1.0, 3.0], **fields)]  # fmt: skip
+            _fake_run(tmp_path, "b", "recurrent-max-critic", 5, [1.0, 3.0], critic_hidden=40,
+                      **fields)]  # fmt: skip
     plots.make_curves(runs, tmp_path / "long.png", smooth=2)
     fig = figures[0]
     assert max(map(len, _legend(fig))) > 100

@@ -82,7 +82,8 @@ TRAINERS = {"mappo", "ippo", "maddpg"}
 BASE = {
     "domain": {"n_rovers": 3, "n_req": 1, "steps": 5, "poi_values": [1.0, 2.0]},
     "learn": {"method": "max-critic", "population": 4, "eval_episodes": 1, "generations": 1,
-              "critic_hidden": 8, "hidden": 4},
+              "hidden": 4},
+    "critic": {"critic_hidden": 8},
 }  # fmt: skip
 
 junk = st.one_of(
@@ -310,6 +311,8 @@ def test_any_agent_and_poi_tables_are_refused_in_one_line_or_train(data):
     pois = data.draw(poi_tables(sorted({a["name"] for a in agents})))
     method = data.draw(st.sampled_from(["D", "max-critic"]))
     doc = {"domain": {"n_req": 1, "steps": 5}, "learn": dict(BASE["learn"], method=method)}
+    if method == "max-critic":
+        doc["critic"] = BASE["critic"]
     if agents:
         doc["agents"] = agents
     else:

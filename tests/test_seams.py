@@ -23,6 +23,7 @@ from physrover.domain.scenarios import Scenario, StartState, register_scenario, 
 from physrover.domain.scoring.credit import Credit, register_credit
 from physrover.domain.sensing.sensor import Sensor, register_sensor
 from physrover.learn.ccea import CCEA
+from physrover.learn.configs import CriticConfig
 
 
 @register_scenario
@@ -181,9 +182,9 @@ feedback = "test-3G"
 def test_five_ccea_generations_with_every_custom_part(method):
     domain = DomainConfig(**CUSTOM, motion="test-half-steps")
     learn = LearnConfig(method=method, generations=5, population=4, hidden=4, eval_episodes=2,
-                        critic_hidden=4, replay_pairs=200, pair_batch=5, pair_batches=2,
                         feedback="test-3G")  # fmt: skip
-    ccea = CCEA(RunConfig(domain, learn))
+    critic = CriticConfig(critic_hidden=4, replay_pairs=200, pair_batch=5, pair_batches=2)
+    ccea = CCEA(RunConfig(domain, learn, critic if method == "max-critic" else None))
     stats = [ccea.run_generation() for _ in range(5)]
     assert ccea.layout.n_in == 12  # policies sized from the sensor
     assert [s.generation for s in stats] == [1, 2, 3, 4, 5]

@@ -238,3 +238,26 @@ def test_a_variant_is_checked_with_each_grid_value_it_runs_with(tmp_path):
     assert len(_sweep(tmp_path, grid + variant).runs(tmp_path, seeds=1)) == 2
     with pytest.raises(ConfigError, match=r"below the domain's coupling \(n_req 3\), got 3"):
         _sweep(tmp_path, grid.replace("[5, 6]", "[5, 3]") + variant)
+
+
+def test_each_methods_table_in_the_base_is_the_settings_of_its_runs(tmp_path):
+    text = SWEEP.replace('method = ["D", "max-critic"]', 'method = ["D", "average", "max-critic"]')
+    text += "\n[base.critic]\ncritic_hidden = 8\n\n[base.sampled]\nn_samples = 3\n"
+    from physrover.config import RunConfig
+    from physrover.learn.configs import CriticConfig, SampledConfig
+
+    sweep = _sweep(tmp_path, text)
+    configs = [RunConfig.from_toml(s.config_toml) for s in sweep.runs(tmp_path, 1)]
+    expected = {"D": None, "average": SampledConfig(n_samples=3),
+                "max-critic": CriticConfig(critic_hidden=8)}  # fmt: skip
+    assert {c.learn.method: c.settings for c in configs} == expected
+    # --set of one method's setting reaches that method's runs only, and names the sweep
+    bigger = sweep.with_overrides({"n_samples": 5, "critic.critic_lr": 1e-4})
+    configs = [RunConfig.from_toml(s.config_toml) for s in bigger.runs(tmp_path, 1)]
+    critic = CriticConfig(critic_hidden=8, critic_lr=1e-4)
+    assert [c.settings for c in configs] == [None, SampledConfig(n_samples=5), critic]
+    assert bigger.name == "tiny+critic.critic_lr=0.0001+n_samples=5"
+    with pytest.raises(ConfigError, match="base.sampled.n_samples: must be >= 1"):
+        _sweep(tmp_path, text.replace("n_samples = 3", "n_samples = 0"))
+    with pytest.raises(ConfigError, match="n_samples: is a setting of .*not of method 'D'"):
+        _sweep(tmp_path, SWEEP + "\n[[variants]]\nn_samples = 3\n")

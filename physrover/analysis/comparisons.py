@@ -23,7 +23,7 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Any
 
-from physrover.analysis.curve_data import format_value
+from physrover.analysis.curve_data import format_value, run_fields
 from physrover.analysis.tables import compare_samples, holm_families
 from physrover.config import ConfigError, RunConfig
 
@@ -43,8 +43,7 @@ def planned_comparisons(runs: list[dict], comparisons, base: RunConfig, grid: li
     the sweep, its config fields (values as group labels write them) and ``final_G``;
     ``base``: the sweep's base config (the value of a field a side leaves out); ``grid``:
     the fields whose values make the sweep's cells."""
-    defaults = {k: format_value(v) for k, v in
-                {**base.domain.flat_dict(), **base.learn.to_dict()}.items()}  # fmt: skip
+    defaults = {k: format_value(v) for k, v in run_fields(base).items()}
     out, skipped = [], []
     for number, comparison in enumerate(comparisons):
         named = list(dict.fromkeys([*comparison["a"], *comparison["b"]]))

@@ -24,6 +24,7 @@ import numpy as np
 
 from physrover.config import ConfigError, DomainConfig, LearnConfig
 from physrover.config.roles import role_fields
+from physrover.core.registry import FITNESS_METHODS
 from physrover.core.stats import mean_ci
 from physrover.experiment.store import METRICS, load_run_config, read_metrics
 
@@ -82,9 +83,19 @@ def format_value(value) -> str:
     return str(value)
 
 
-_FIELD_ORDER = (*DomainConfig().flat_dict(), *LearnConfig.field_names())
-"""Every field by its bare name, in config order (a scenario's or sensor's own fields of
-other kinds than the defaults come after, sorted)."""
+def _method_fields() -> tuple[str, ...]:
+    """The fields of the fitness methods' own tables, in registration order."""
+    names: dict[str, None] = {}
+    for _name, spec in FITNESS_METHODS.items():
+        names |= dict.fromkeys(spec.config.field_names() if spec.config else ())
+    return tuple(names)
+
+
+def field_order() -> tuple[str, ...]:
+    """Every field by its bare name, in config order: the domain's, [learn]'s, the fitness
+    methods' own tables' (``critic_lr``: a 0.5 run's [learn] held them); a scenario's or
+    sensor's own fields of other kinds than the defaults come after, sorted."""
+    return (*DomainConfig().flat_dict(), *LearnConfig.field_names(), *_method_fields())
 
 
 def differing_fields(fields: list[dict], skip: tuple[str, ...] = ()) -> list[str]:
@@ -93,11 +104,12 @@ def differing_fields(fields: list[dict], skip: tuple[str, ...] = ()) -> list[str
     and ``skip`` (a field that only some runs have, e.g. a scenario kind's own, differs only
     if those runs disagree on it: the kind already tells the others apart)."""
     left_out = {"method", *NOT_GROUPED, *skip}
+    order = field_order()
     # then a trainer's own fields (``mappo.lr``), which only some runs have
-    extra = sorted({name for f in fields for name in f} - set(_FIELD_ORDER))
+    extra = sorted({name for f in fields for name in f} - set(order))
     return [
         name
-        for name in (*_FIELD_ORDER, *extra)
+        for name in (*order, *extra)
         if name not in left_out
         and name.rsplit(".", 1)[-1] not in NOT_GROUPED  # a trainer's seed: ``maddpg.seed``
         and len({format_value(f[name]) for f in fields if name in f}) > 1
@@ -124,18 +136,15 @@ def load_runs(
     configs = [load_run_config(path) for path in paths]
     all_fields = []
     for config in configs:
-        domain = config.domain  # with its [[agents]] and [[pois]] fields (uav.count ...)
-        fields = {**domain.flat_dict(), **role_fields(domain), **config.learn.to_dict()}
-        if config.trainer is not None:  # a gradient-based run: its own table, by table.field
-            section = config.trainer.section
-            fields |= {f"{section}.{k}": v for k, v in config.trainer.to_dict().items()}
+        fields = run_fields(config)
+        if config.trainer is not None:
             del fields["generations"]  # [learn] generations: not what a trainer's run counts
         all_fields.append(fields)
     for name, option in [(n, "--by") for n in by] + ([(x, "--final")] if x else []):
-        if name not in _FIELD_ORDER and not any(name in f for f in all_fields):
+        if name not in field_order() and not any(name in f for f in all_fields):
             raise ConfigError(name, f"not a config field of these runs ({option})")
     split = set(differing_fields(all_fields, skip=(x,) if x else ())) | set(by)
-    order = list(_FIELD_ORDER) + sorted(split - set(_FIELD_ORDER))
+    order = list(field_order()) + sorted(split - set(field_order()))
     names = [n for n in order if n in split and n not in ("method", x)]
     runs = []
     for path, config, fields in zip(paths, configs, all_fields, strict=True):
@@ -152,6 +161,20 @@ def load_runs(
     return runs
 
 
+def run_fields(config) -> dict:
+    """A run's config fields by the names labels and tables use: the domain's (with its
+    [[agents]] and [[pois]] fields, ``uav.count``...), [learn]'s, and the method's own
+    table's, by bare name for a fitness method's (``critic_lr``) and ``table.field`` for a
+    gradient-based trainer's (``mappo.lr``)."""
+    fields = {**config.domain.flat_dict(), **role_fields(config.domain), **config.learn.to_dict()}
+    if config.trainer is not None:
+        section = config.trainer.section
+        fields |= {f"{section}.{k}": v for k, v in config.trainer.to_dict().items()}
+    elif config.settings is not None:
+        fields |= config.settings.to_dict()
+    return fields
+
+
 def training_episodes(config) -> int:
     """Training episodes per CCEA generation: the fitness method's rounds x the population
     (k for D, G and the critics; n_samples x k for average and leniency; R x k for the hall
@@ -159,7 +182,7 @@ def training_episodes(config) -> int:
     from physrover.learn.fitness import Problem, make_method
 
     problem = Problem(config.domain.n_rovers, 1, 1, 1)  # sizes do not change the rounds
-    method = make_method(config.learn, problem, np.random.default_rng(0))
+    method = make_method(config, problem, np.random.default_rng(0))
     return method.rounds * config.learn.population
 
 

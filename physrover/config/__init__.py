@@ -3,7 +3,7 @@
 - :mod:`physrover.config.base`: the shared machinery (coercion, errors, TOML, components);
 - :mod:`physrover.config.domain`: [domain], [physics], [scenario], [sensor];
 - :mod:`physrover.config.learn`: [learn];
-- :mod:`physrover.config.run`: a run's whole config (the tables above and a trainer's).
+- :mod:`physrover.config.run`: a run's whole config (the tables above and the method's own).
 
 Every config is validated on construction: a bad value raises :class:`ConfigError`, whose
 message names the field and the allowed range. Unknown names are errors, never ignored.
@@ -25,7 +25,14 @@ from physrover.config.base import (
 )
 from physrover.config.domain import COMPONENTS, DomainConfig, PhysicsConfig
 from physrover.config.learn import OPTIMIZERS, LearnConfig
-from physrover.config.run import SHARED_WITH_LEARN, RunConfig
+from physrover.config.run import (
+    RESERVED_SECTIONS,
+    SHARED_WITH_LEARN,
+    RunConfig,
+    method_spec,
+    settings_class,
+    settings_tables,
+)
 
 __all__ = [
     "COMPONENTS",
@@ -36,6 +43,7 @@ __all__ = [
     "LearnConfig",
     "OPTIMIZERS",
     "PhysicsConfig",
+    "RESERVED_SECTIONS",
     "RunConfig",
     "SHARED_WITH_LEARN",
     "check",
@@ -43,6 +51,9 @@ __all__ = [
     "dumps_toml",
     "load_toml_file",
     "loads_toml",
+    "method_spec",
     "naming_file",
     "parse_override",
+    "settings_class",
+    "settings_tables",
 ]

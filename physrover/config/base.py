@@ -124,6 +124,15 @@ class ConfigBase:
             interval = "[0, 1]" if closed else "(0, 1]"
             check(ok, name, f"must be in {interval}, got {value}")
 
+    def is_default(self, name: str) -> bool:
+        """Whether field ``name`` holds its declared default (a rule "this field configures
+        X" checks this, so the default is written once, where the field is declared)."""
+        field = next(f for f in dataclasses.fields(self) if f.name == name)  # type: ignore[arg-type]
+        default = field.default
+        if default is dataclasses.MISSING:
+            default = field.default_factory()  # type: ignore[misc]
+        return getattr(self, name) == default
+
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]

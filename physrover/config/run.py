@@ -1,8 +1,9 @@
-"""A training run's configuration: the domain's tables, [learn] and a trainer's table."""
+"""A training run's configuration: the domain's tables, [learn] and the method's own table."""
 
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -19,23 +20,64 @@ from physrover.config.base import (
 from physrover.config.domain import COMPONENTS, REGISTRIES, DomainConfig
 from physrover.config.learn import LearnConfig
 from physrover.config.roles import ROLE_TABLES, check_not_overridden
-from physrover.core.registry import CREDITS, TRAINERS
+from physrover.core.registry import CREDITS, FITNESS_METHODS, TRAINERS
 
 SHARED_WITH_LEARN = ("seed", "hidden", "eval_episodes", "checkpoint_every")
 """Fields a trainer's table shares with [learn], set in [learn] only (one seed per run)."""
+
+RESERVED_SECTIONS = ("domain", *COMPONENTS, *ROLE_TABLES, "learn", "marl")
+"""Tables of a run's config.toml that no method's or trainer's own table may take."""
+
+
+def method_spec(method: str):
+    """The registry entry of ``method``: a trainer's (TRAINERS) or a fitness method's
+    (FITNESS_METHODS); None for a name neither knows."""
+    for registry in (TRAINERS, FITNESS_METHODS):
+        if method in registry:
+            return registry[method]
+    return None
+
+
+def settings_class(method: str) -> type | None:
+    """The class of ``method``'s own settings table (its registry entry's ``config``), or
+    None if it has none."""
+    return getattr(method_spec(method), "config", None)
+
+
+def settings_tables() -> dict[str, list[str]]:
+    """``{section: [methods]}``: every method's own table and the methods that take it."""
+    tables: dict[str, list[str]] = {}
+    for registry in (TRAINERS, FITNESS_METHODS):
+        for name, spec in registry.items():
+            if getattr(spec, "config", None) is not None:
+                tables.setdefault(spec.config.section, []).append(name)
+    return tables
+
+
+def _owners(field: str) -> str:
+    """``[critic] (mean-critic, max-critic, ...)``: the fitness methods' tables with ``field``."""
+    found = {}
+    for name, spec in FITNESS_METHODS.items():
+        cls = getattr(spec, "config", None)
+        if cls is not None and field in cls.field_names():
+            found.setdefault(cls.section, []).append(name)
+    return "; ".join(f"[{section}] ({', '.join(names)})" for section, names in found.items())
 
 
 @dataclasses.dataclass(frozen=True)
 class RunConfig:
     """Everything a training run needs: the domain and the learner. TOML: the domain's tables
-    ([domain], [physics], [scenario], [sensor]), [learn], and, when ``[learn] method`` names
-    a gradient-based trainer (``physrover methods``), that trainer's table (e.g. ``[mappo]``),
-    held in ``trainer``; its fields shared with [learn] (:data:`SHARED_WITH_LEARN`) are taken
-    from [learn]."""
+    ([domain], [physics], [scenario], [sensor], [[pois]], [[agents]]), [learn], and the
+    method's own table, held in ``settings``: a fitness method's (``[critic]``,
+    ``[trajectory_critic]``, ``[sampled]``: :mod:`physrover.learn.configs`) or a
+    gradient-based trainer's (``[mappo]``; its fields shared with [learn],
+    :data:`SHARED_WITH_LEARN`, are taken from [learn]). A method without settings (``D``,
+    ``G``, ``hall-of-fame``) has ``settings = None``; None for one that has them means its
+    defaults."""
 
     domain: DomainConfig = dataclasses.field(default_factory=DomainConfig)
     learn: LearnConfig = dataclasses.field(default_factory=LearnConfig)
-    trainer: Any = None
+    settings: Any = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.domain, DomainConfig):
@@ -44,32 +86,33 @@ class RunConfig:
             raise ConfigError("learn", "must be a LearnConfig")
         credit = CREDITS[self.learn.feedback] if self.learn.feedback in CREDITS else None
         getattr(credit, "check", lambda domain: None)(self.domain)  # defined for the domain?
-        if self.learn.critic_target == "step":
-            check(getattr(credit, "per_step_defined", False), "critic_target",
-                  f'per-step targets are defined for feedback "D", "G" and "D++", not '
-                  f'{self.learn.feedback!r}')  # fmt: skip
-            check(
-                not any(p.scored_by_rule for p in self.domain.pois),
-                "critic_target",
-                'per-step targets need POIs without after, require or score_at = "final"',
-            )
         self._check_curriculum()
-        spec = TRAINERS[self.learn.method] if self.learn.method in TRAINERS else None
-        check(spec is None or not self.domain.agents, "agents", f"{self.learn.method} trains "
-              "teams of the paper's rovers only; agent classes train with the CCEA")  # fmt: skip
-        if spec is None:
-            if self.trainer is not None:
-                raise ConfigError("trainer", f"method {self.learn.method!r} takes no trainer")
+        method = self.learn.method
+        cls = settings_class(method)
+        if cls is None:
+            if self.settings is not None:
+                raise ConfigError(self.settings.section, f"method {method!r} has no settings "
+                                  "of its own")  # fmt: skip
             return
-        trainer = self.trainer if self.trainer is not None else spec.config()
-        if not isinstance(trainer, spec.config):
-            raise ConfigError("trainer", f"must be a {spec.config.__name__}")
-        try:  # the trainer's credit signal, defined for the domain?
-            CREDITS[trainer.reward].check(self.domain)
-        except ConfigError as exc:
-            raise ConfigError(f"{spec.config.section}.reward", exc.message) from None
-        shared = {name: getattr(self.learn, name) for name in SHARED_WITH_LEARN}
-        object.__setattr__(self, "trainer", trainer.replace(**shared))
+        settings = self.settings if self.settings is not None else cls()
+        if not isinstance(settings, cls):
+            raise ConfigError(cls.section, f"{method!r} takes a {cls.__name__}, got "
+                              f"{type(settings).__name__}")  # fmt: skip
+        if method in TRAINERS:
+            check(not self.domain.agents, "agents", f"{method} trains teams of the paper's "
+                  "rovers only; agent classes train with the CCEA")  # fmt: skip
+            try:  # the trainer's credit signal, defined for the domain?
+                CREDITS[settings.reward].check(self.domain)
+            except ConfigError as exc:
+                raise ConfigError(f"{cls.section}.reward", exc.message) from None
+            settings = settings.replace(**{n: getattr(self.learn, n) for n in SHARED_WITH_LEARN})
+        object.__setattr__(self, "settings", settings)
+        getattr(settings, "check_run", lambda run: None)(self)  # rules across the tables
+
+    @property
+    def trainer(self):
+        """The gradient-based trainer's config (``[mappo]``...), or None for the CCEA."""
+        return self.settings if self.learn.method in TRAINERS else None
 
     def _check_curriculum(self) -> None:
         """A coupling curriculum (``[learn] curriculum_start``) fits the domain: it starts
@@ -117,11 +160,10 @@ class RunConfig:
 
     def _tables(self) -> dict[str, dict[str, Any]]:
         tables = {**self.domain.tables(), "learn": self.learn.to_dict()}
-        if self.trainer is not None:
-            own = self.trainer.to_dict()
-            tables[self.trainer.section] = {
-                k: v for k, v in own.items() if k not in SHARED_WITH_LEARN
-            }
+        if self.settings is not None:
+            own = self.settings.to_dict()
+            shared = SHARED_WITH_LEARN if self.trainer is not None else ()
+            tables[self.settings.section] = {k: v for k, v in own.items() if k not in shared}
         return tables
 
     def to_toml(self) -> str:
@@ -129,26 +171,35 @@ class RunConfig:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
-        sections = {spec.config.section: name for name, spec in TRAINERS.items()}
-        unknown = sorted(set(data) - {"domain", *COMPONENTS, *ROLE_TABLES, "learn", *sections})
+        sections = settings_tables()
+        known = ["domain", *COMPONENTS, *ROLE_TABLES, "learn", *sections]
+        unknown = sorted(set(data) - set(known))
         if unknown:
-            known = ", ".join(["domain", *COMPONENTS, *ROLE_TABLES, "learn", *sections])
-            raise ConfigError(unknown[0], f"unknown TOML table (known: {known}; a trainer of "
-                              "your own registers its table when its module is imported, e.g. "
-                              "physrover --import my_parts.py)")  # fmt: skip
-        learn = LearnConfig.from_dict(data.get("learn", {}))
-        trainer = None
-        for section, name in sections.items():
-            if section not in data:
-                continue
-            if name != learn.method:
-                raise ConfigError(section, f"a [{section}] table, but method is {learn.method!r}")
-            table = dict(data[section])
-            for shared in SHARED_WITH_LEARN:
-                if shared in table:
-                    raise ConfigError(f"{section}.{shared}", f"set {shared} in [learn]")
-            trainer = TRAINERS[name].config.from_dict(table)
-        return cls(DomainConfig.from_tables(data), learn, trainer)
+            raise ConfigError(unknown[0], f"unknown TOML table (known: {', '.join(known)}; a "
+                              "method or trainer of your own registers its table when its "
+                              "module is imported: physrover --import my_parts.py)")  # fmt: skip
+        table = dict(data.get("learn", {}))
+        moved = {k: table.pop(k) for k in list(table)
+                 if k not in LearnConfig.field_names() and _owners(k)}  # fmt: skip
+        learn = LearnConfig.from_dict(table)
+        own = settings_class(learn.method)
+        for section in sections:
+            if section in data and (own is None or section != own.section):
+                takes = f" (its table is [{own.section}])" if own is not None else ""
+                raise ConfigError(section, f"a [{section}] table, but method is "
+                                  f"{learn.method!r}{takes}")  # fmt: skip
+        settings = None
+        if own is not None:
+            table = dict(data.get(own.section, {}))
+            if learn.method in TRAINERS:
+                for shared in SHARED_WITH_LEARN:
+                    if shared in table:
+                        raise ConfigError(f"{own.section}.{shared}", f"set {shared} in [learn]")
+            _move_from_learn(moved, table, own, learn.method)
+            settings = own.from_dict(table)
+        else:
+            _move_from_learn(moved, {}, None, learn.method)
+        return cls(DomainConfig.from_tables(data), learn, settings)
 
     @classmethod
     def from_toml(cls, text: str) -> RunConfig:
@@ -162,9 +213,11 @@ class RunConfig:
             return cls.from_dict(data)
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> RunConfig:
-        """Apply ``{field: value}`` by bare field name, or ``table.field`` (``mappo.lr``);
-        a bare name that two active tables share is an error that says which to write."""
-        domain, learn, trainer = {}, {}, {}
+        """Apply ``{field: value}`` by bare field name, or ``table.field`` (``critic.critic_lr``,
+        ``mappo.lr``); a bare name that two active tables share is an error that says which
+        to write. A change of ``method`` starts the new method's table from its defaults
+        unless it takes the same table (``mean-critic`` to ``max-critic``)."""
+        domain, learn, own = {}, {}, {}
         # the fields of a scenario or sensor chosen in the same overrides are domain fields
         domain_names = set(self.domain.flat_dict())
         for section, registry in REGISTRIES.items():
@@ -184,34 +237,67 @@ class RunConfig:
             elif table:
                 if field in SHARED_WITH_LEARN:
                     raise ConfigError(name, f"set {field} in [learn] (learn.{field})")
-                trainer[(table, field)] = value
+                own[(table, field)] = value
             elif name in domain_names:
                 domain[name] = value
             elif name in LearnConfig.field_names():
                 learn[name] = value
             else:
-                trainer[(None, name)] = value
+                own[(None, name)] = value
         new_learn = self.learn.replace(**learn)
-        spec = TRAINERS[new_learn.method] if new_learn.method in TRAINERS else None
+        cls = settings_class(new_learn.method)
         fields: dict[str, Any] = {}
-        for (table, name), value in trainer.items():
-            if spec is None or table not in (None, spec.config.section):
-                known = [*domain_names, *LearnConfig.field_names()]
-                where = f"{table}." if table else ""
+        for (table, name), value in own.items():
+            where = f"{table}." if table else ""
+            if cls is None or table not in (None, cls.section) or name not in cls.field_names():
+                elsewhere = _owners(name) if table in (None, *settings_tables()) else ""
+                if elsewhere:
+                    raise ConfigError(f"{where}{name}", f"is a setting of {elsewhere}, not of "
+                                      f"method {new_learn.method!r}")  # fmt: skip
+                known = [*domain_names, *LearnConfig.field_names(),
+                         *(cls.field_names() if cls else ())]  # fmt: skip
                 raise ConfigError(
                     f"{where}{name}",
                     f"unknown config field{did_you_mean(name, known)} (not in the domain's "
-                    "tables or [learn]; `physrover info` lists every field)",
+                    "tables, [learn] or the method's own; `physrover info` lists every field)",
                 )
             fields[name] = value
-        if spec is not None:
-            section = spec.config.section
-            for name in learn:
-                if name in spec.config.field_names() and name not in SHARED_WITH_LEARN:
-                    raise ConfigError(
-                        name, f"is in [learn] and [{section}]: write learn.{name} or "
-                        f"{section}.{name}"
-                    )  # fmt: skip
-            base = self.trainer if isinstance(self.trainer, spec.config) else spec.config()
-            return RunConfig(self.domain.replace(**domain), new_learn, base.replace(**fields))
-        return RunConfig(self.domain.replace(**domain), new_learn)
+        if cls is None:
+            return RunConfig(self.domain.replace(**domain), new_learn)
+        for name in learn:
+            if name in cls.field_names() and name not in SHARED_WITH_LEARN:
+                raise ConfigError(name, f"is in [learn] and [{cls.section}]: write learn.{name} "
+                                  f"or {cls.section}.{name}")  # fmt: skip
+        base = self.settings if isinstance(self.settings, cls) else cls()
+        return RunConfig(self.domain.replace(**domain), new_learn, base.replace(**fields))
+
+
+def _move_from_learn(moved: dict[str, Any], table: dict[str, Any], own: type | None,
+                     method: str) -> None:  # fmt: skip
+    """Read a physrover 0.5 [learn] whose fields ``moved`` are now a fitness method's own
+    (:mod:`physrover.learn.configs`): each the method takes goes into ``table`` (of class
+    ``own``); 0.5's config.toml wrote every field, so the others are dropped, quietly at
+    their defaults, with the note otherwise. One note says what moved and what was
+    dropped."""
+    into = [] if own is None or method in TRAINERS else [k for k in moved if k in own.field_names()]
+    for name in into:
+        if name in table:
+            raise ConfigError(f"learn.{name}", f"is also in [{own.section}]: keep that one")
+        table[name] = moved[name]
+    changed, ignored = [], []
+    for name, value in moved.items():
+        owner = next(spec.config for _, spec in FITNESS_METHODS.items()
+                     if name in getattr(spec.config, "field_names", tuple)())  # fmt: skip
+        if value != getattr(owner(), name):
+            (changed if name in into else ignored).append(name)
+    notes = []
+    if into:
+        rest = len(into) - len(changed)
+        at_default = f" (and {rest} at their defaults)" if changed and rest else ""
+        notes.append(f"{', '.join(changed) or 'its settings'}{at_default} moved to "
+                     f"[{own.section}] in physrover 0.6")  # fmt: skip
+    if ignored:
+        notes.append(f"{', '.join(ignored)} ignored ({method!r} has no such setting)")
+    if notes:
+        warnings.warn(f"[learn] {'; '.join(notes)} (`physrover info` writes the new layout)",
+                      UserWarning, stacklevel=4)  # fmt: skip

@@ -22,6 +22,10 @@ A sweep file (TOML) names a base config and a grid::
     motion = "physics"
     collisions = false
 
+A method's own table in the base (``[base.critic]``, ``[base.sampled]``, ``[base.mappo]``:
+:mod:`physrover.learn.configs`) is the settings of every run whose method takes it, so one
+sweep can set the critics' and the average's settings beside D's runs.
+
 Every cell x seed is one ``train`` run in its own directory, named by its grid values and
 seed. Re-running a sweep skips finished runs and resumes interrupted ones from their
 checkpoints; a crashed run is reported with its error and does not stop the others. Each
@@ -41,7 +45,14 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from physrover.config import ConfigError, RunConfig, load_toml_file, naming_file
+from physrover.config import (
+    ConfigError,
+    RunConfig,
+    load_toml_file,
+    naming_file,
+    settings_class,
+    settings_tables,
+)
 from physrover.core import plugins
 from physrover.experiment.claims import holder
 from physrover.experiment.store import last_checkpoint
@@ -71,6 +82,15 @@ class Sweep:
     comparisons: tuple[dict[str, dict[str, Any]], ...] = ()
     """``[[comparisons]]``: the planned comparisons ``physrover results`` tests, each
     ``{"a": {field: value}, "b": {field: value}}`` (:mod:`physrover.analysis.comparisons`)."""
+    tables: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
+    """The base's tables of methods other than the base's own (``[base.sampled]`` when the
+    base method is the max critic), as ``((section, ((field, value), ...)), ...)``: the
+    settings of each run whose method takes them (:meth:`config`)."""
+
+    def config(self, overrides: dict[str, Any]) -> RunConfig:
+        """The config of a run: the base with ``overrides`` ({field: value}) and, if the
+        run's method takes one of :attr:`tables`, that table's settings under them."""
+        return _resolve(self.base, {s: dict(table) for s, table in self.tables}, overrides)
 
     @classmethod
     def load(cls, path: str | Path) -> Sweep:
@@ -95,13 +115,13 @@ class Sweep:
         if not isinstance(imports, list) or not all(isinstance(i, str) for i in imports):
             raise ConfigError("imports", "must be a list of module names or .py paths")
         plugins.load(imports, base=Path(path).resolve().parent)  # before any name is checked
-        base = RunConfig.from_dict(data.get("base", {}))
+        base, tables = _base(data.get("base", {}))
         grid = data.get("grid", {})
         for field, values in grid.items():
             if not isinstance(values, list) or not values:
                 raise ConfigError(field, "grid values must be a non-empty list")
             for value in values:  # the name must be a config field, each value valid
-                base.with_overrides({field: value})
+                _resolve(base, tables, {field: value})
         seeds = meta.get("seeds", 1)
         if not isinstance(seeds, int) or seeds < 1:
             raise ConfigError("seeds", f"must be a positive integer, got {seeds!r}")
@@ -109,10 +129,11 @@ class Sweep:
         points = itertools.product(*([(f, v) for v in values] for f, values in grid.items()))
         runs = [{**dict(point), **variant} for point in points for variant in variants]
         for run in runs:  # every run's config must be valid (a variant may need the grid's)
-            base.with_overrides(run)
+            _resolve(base, tables, run)
         name = str(meta.get("name", Path(path).stem))
-        comparisons = _comparisons(data.get("comparisons", []), base, runs)
-        return cls(name, base, grid, seeds, variants, tuple(imports), comparisons)
+        comparisons = _comparisons(data.get("comparisons", []), base, tables, runs)
+        frozen = tuple((section, tuple(table.items())) for section, table in tables.items())
+        return cls(name, base, grid, seeds, variants, tuple(imports), comparisons, frozen)
 
     def write_copy(self, root: str | Path, text: str) -> None:
         """The sweep file's ``text`` as ``ROOT/NAME/sweep.toml``, where ``physrover results``
@@ -135,9 +156,20 @@ class Sweep:
             if field in varied:
                 raise ConfigError(field, f"is varied by sweep {self.name}'s grid or variants; "
                                   "--set cannot override it (edit a copy of the file)")  # fmt: skip
-        base = self.base.with_overrides(overrides)
+        tables = {section: dict(table) for section, table in self.tables}
+        own = {}
+        for field, value in overrides.items():  # another method's setting goes to its table
+            section, _, name = field.rpartition(".")
+            others = [s for s in ([section] if section else tables)
+                      if s in tables and name in _table_class(s).field_names()]  # fmt: skip
+            for other in others:
+                tables[other][name] = value
+            if not others:
+                own[field] = value
+        base = self.base.with_overrides(own)
         suffix = "+".join(f"{field}={_slug(value)}" for field, value in sorted(overrides.items()))
-        return replace(self, name=f"{self.name}+{suffix}", base=base)
+        frozen = tuple((section, tuple(table.items())) for section, table in tables.items())
+        return replace(self, name=f"{self.name}+{suffix}", base=base, tables=frozen)
 
     def runs(
         self, root: str | Path, seeds: int | range | None = None, drop_state: bool = False
@@ -156,7 +188,7 @@ class Sweep:
         for seed in chosen:  # seed-major: a sweep stopped part-way leaves every cell its seeds
             for values, variant in cells:
                 overrides = {**dict(zip(fields, values, strict=True)), **variant, "seed": seed}
-                config = self.base.with_overrides(overrides)
+                config = self.config(overrides)
                 name = "_".join(f"{f}={_slug(v)}" for f, v in overrides.items())
                 out = str(Path(root) / self.name / name)
                 specs.append(RunSpec(name, config.to_toml(), out, drop_state))
@@ -233,39 +265,74 @@ SWEEP_COPY = "sweep.toml"
 """The copy of its file a sweep keeps in its folder (:meth:`Sweep.write_copy`)."""
 
 
-def _comparisons(tables: Any, base: RunConfig,
+def _comparisons(given: Any, base: RunConfig, tables: dict,
                  runs: list[dict[str, Any]]) -> tuple[dict[str, dict[str, Any]], ...]:  # fmt: skip
     """``[[comparisons]]`` checked: each an ``a`` and a ``b`` table of config fields and
     values that differ somewhere (the runs each side picks), each side valid with some run
     of the sweep (``runs``: each run's grid and variant fields)."""
-    if not isinstance(tables, list):
+    if not isinstance(given, list):
         raise ConfigError("comparisons", "must be [[comparisons]] tables, each with a and b")
     out = []
-    for k, table in enumerate(tables):
+    for k, table in enumerate(given):
         where = f"comparisons[{k}]"
         if not isinstance(table, dict) or set(table) != {"a", "b"}:
             raise ConfigError(where, 'needs exactly a and b, e.g. a = { method = "D" }')
         for side in ("a", "b"):
             if not isinstance(table[side], dict) or not table[side]:
                 raise ConfigError(f"{where}.{side}", "must be a table of config fields")
-            _valid_somewhere(base, runs, table[side])
+            _valid_somewhere(base, tables, runs, table[side])
         if table["a"] == table["b"]:
             raise ConfigError(where, "a and b pick the same runs")
         out.append({"a": dict(table["a"]), "b": dict(table["b"])})
     return tuple(out)
 
 
-def _valid_somewhere(base: RunConfig, runs: list[dict[str, Any]], side: dict[str, Any]) -> None:
+def _valid_somewhere(base: RunConfig, tables: dict, runs: list[dict[str, Any]],
+                     side: dict[str, Any]) -> None:  # fmt: skip
     """A comparison's side is config fields with values some run of the sweep can have;
     else the error of the first run tried."""
     first = None
     for run in runs:
         try:
-            base.with_overrides({**run, **side})
+            _resolve(base, tables, {**run, **side})
             return
         except ConfigError as exc:
             first = first or exc
     raise first
+
+
+def _base(doc: dict[str, Any]) -> tuple[RunConfig, dict[str, dict[str, Any]]]:
+    """A sweep's [base.*] as the base RunConfig and the tables of methods other than its
+    own (:attr:`Sweep.tables`), each validated as its class."""
+    doc = dict(doc)
+    base_method = doc.get("learn", {}).get("method", RunConfig().learn.method)
+    own = settings_class(base_method) if isinstance(base_method, str) else None
+    tables = {}
+    for section in settings_tables():
+        if section in doc and (own is None or section != own.section):
+            table = doc.pop(section)
+            try:
+                _table_class(section).from_dict(table)
+            except ConfigError as exc:
+                raise ConfigError(f"base.{section}.{exc.field}", exc.message) from None
+            tables[section] = dict(table)
+    return RunConfig.from_dict(doc), tables
+
+
+def _table_class(section: str) -> type:
+    """The settings class whose TOML table is ``section``."""
+    return settings_class(settings_tables()[section][0])
+
+
+def _resolve(base: RunConfig, tables: dict, overrides: dict[str, Any]) -> RunConfig:
+    """``base`` with ``overrides`` and the table in ``tables`` of the run's method under
+    them (see :meth:`Sweep.config`)."""
+    method = overrides.get("method", overrides.get("learn.method", base.learn.method))
+    cls = settings_class(method) if isinstance(method, str) else None
+    table = tables.get(cls.section, {}) if cls is not None else {}
+    under = {f"{cls.section}.{k}": v for k, v in table.items()
+             if k not in overrides and f"{cls.section}.{k}" not in overrides}  # fmt: skip
+    return base.with_overrides({**under, **overrides})
 
 
 def run_status(spec: RunSpec) -> str:

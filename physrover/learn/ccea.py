@@ -94,7 +94,8 @@ class CCEA:
         if cfg.selection == "elites" and cfg.n_team_elites > 0:
             self.team_elites = TeamElites(cfg.n_team_elites, self.genomes, self.team_rng)
         self.n_elite_teams = 0 if self.team_elites is None else self.team_elites.n
-        self.method = make_method(cfg, Problem(self.n_rovers, d.steps, n_obs, n_act), critic_init)
+        problem = Problem(self.n_rovers, d.steps, n_obs, n_act)
+        self.method = make_method(config, problem, critic_init)
         self.credit = CREDITS[cfg.feedback]  # each rover's immediate feedback
         self.n_train = self.method.rounds * self.k
         self.n_played = self.n_train + self.n_elite_teams  # episodes before the evaluation's

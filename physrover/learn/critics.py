@@ -182,6 +182,30 @@ class CriticSettings:
     output_weights: str = "fixed"  # "fixed" (the paper's unit weights) | "trained"
     target: str = "episode"  # a pair's target: its trajectory's feedback | its step's credit
 
+    @classmethod
+    def from_config(cls, cfg, aggregation: str, update: str) -> CriticSettings:
+        """The settings a :class:`~physrover.learn.configs.CriticConfig` (``[critic]``) gives
+        the critic of ``aggregation`` and ``update``: the replay and mini-batches of
+        trajectories (regular) or of pairs (inexact)."""
+        regular = update == "regular"
+        return cls(
+            aggregation=aggregation,
+            update=update,
+            hidden=cfg.critic_hidden,
+            slope=cfg.leaky_slope,
+            lr=cfg.critic_lr,
+            optimizer=cfg.critic_optimizer,
+            capacity=cfg.replay_trajectories if regular else cfg.replay_pairs,
+            batch=cfg.trajectory_batch if regular else cfg.pair_batch,
+            batches=cfg.trajectory_batches if regular else cfg.pair_batches,
+            step_input=cfg.critic_step_input,
+            top_k=cfg.critic_top_k,
+            ensemble=cfg.critic_ensemble,
+            optimism=cfg.critic_optimism,
+            output_weights=cfg.critic_output_weights,
+            target=cfg.critic_target,
+        )
+
 
 class FitnessCritic:
     """The fitness critics of R rovers: evaluation (Eqs. 3-4), replay and updates (6-10)."""

@@ -17,19 +17,27 @@ generation's episodes, Algorithm 1's inner loop) and ``update`` (end of generati
 
 Every method is registered by name in :data:`physrover.core.registry.FITNESS_METHODS` (with a
 one-line summary and the paper section, listed by ``physrover methods``); a new method is a
-:class:`FitnessMethod` subclass plus one :func:`register_method` call.
+:class:`FitnessMethod` subclass plus one :func:`register_method` call, naming the class of
+its settings if it has any (:mod:`physrover.learn.configs`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from physrover.config import LearnConfig
+from physrover.config import (
+    RESERVED_SECTIONS,
+    ConfigBase,
+    RunConfig,
+    method_spec,
+    settings_tables,
+)
 from physrover.core.registry import FITNESS_METHODS
+from physrover.learn.configs import CriticConfig, SampledConfig, TrajectoryCriticConfig
 from physrover.learn.critics import CriticSettings, FitnessCritic
 
 
@@ -177,14 +185,6 @@ class CriticFitness(FitnessMethod):
         self.critic.load(state)
 
 
-CRITICS = {
-    "mean-critic": ("mean", "regular"),
-    "max-critic": ("max", "inexact"),
-    "max-critic-regular": ("max", "regular"),
-    "mean-critic-inexact": ("mean", "inexact"),
-}
-
-
 @dataclass(frozen=True)
 class Problem:
     """What a fitness method is built for: the team and the sizes of its trajectories."""
@@ -205,22 +205,25 @@ class Problem:
 
 @dataclass(frozen=True)
 class MethodSpec:
-    """A registered fitness method: how to build it, and what to tell a user about it.
+    """A registered fitness method: how to build it, its settings, and what to tell a user.
 
-    ``build(cfg, problem, rng)`` returns a :class:`FitnessMethod` for a :class:`Problem`;
-    ``rng`` is the run's critic generator (initial critic weights), the only draw a method
-    makes at construction.
+    ``build(settings, problem, rng)`` returns a :class:`FitnessMethod` for a
+    :class:`Problem`; ``settings`` is the run's instance of ``config`` (None for a method
+    without one); ``rng`` is the run's critic generator (initial critic weights), the only
+    draw a method makes at construction.
     """
 
-    build: Callable[[LearnConfig, Problem, np.random.Generator], FitnessMethod]
+    build: Callable[[Any, Problem, np.random.Generator], FitnessMethod]
     summary: str
     """One line: what the fitness of a policy is."""
     section: str
     """Where the paper describes it."""
-    critic: bool = False
-    """Whether it has a fitness critic (so the [learn] critic fields apply to it)."""
-    trajectory: bool = False
-    """Whether it has a trajectory critic (so the [learn] ``trajectory_*`` fields apply)."""
+    config: type | None = None
+    """Its settings: a frozen :class:`~physrover.config.ConfigBase` dataclass whose
+    ``section`` names its TOML table (``[critic]``), shared by the methods that take the same
+    settings; it may define ``check_run(run)`` for the rules across a run's tables (which of
+    the methods it configures, the credit, the domain: a
+    :class:`~physrover.config.RunConfig`). None: the method has no settings of its own."""
     plans_teams: bool = False
     """Whether its :meth:`FitnessMethod.plan` forms teams its own way (the hall of fame), so
     ``team_formation = "softmax"`` cannot replace it."""
@@ -233,168 +236,155 @@ def register_method(
     build,
     summary: str,
     section: str,
-    critic: bool = False,
-    trajectory: bool = False,
+    config: type | None = None,
     plans_teams: bool = False,
     pair_replay: bool = False,
 ) -> MethodSpec:
-    """Add a fitness method under ``name`` (usable in TOML, ``--method`` and ``--set``);
-    ``critic``: it has a fitness critic, which the [learn] critic fields configure;
-    ``trajectory``: a trajectory critic, which the ``trajectory_*`` fields configure;
-    ``plans_teams``: its ``plan`` is not random teams; ``pair_replay``: see MethodSpec."""
-    spec = MethodSpec(build, summary, section, critic, trajectory, plans_teams, pair_replay)
+    """Add a fitness method under ``name`` (usable in TOML, ``--method`` and ``--set``).
+
+    ``build(settings, problem, rng)``: see :class:`MethodSpec`; ``config``: the class of its
+    settings (its own or a built-in one, e.g. :class:`~physrover.learn.configs.CriticConfig`),
+    whose table no trainer may also use; ``plans_teams``: its ``plan`` is not random teams;
+    ``pair_replay``: see :class:`MethodSpec`.
+    """
+    if config is not None:
+        if not (isinstance(config, type) and issubclass(config, ConfigBase) and config.section):
+            raise TypeError(f"method {name!r}: config must be a ConfigBase dataclass with a "
+                            f"section, got {config!r}")  # fmt: skip
+        others = [getattr(method_spec(m), "config", None) for m in
+                  settings_tables().get(config.section, []) if m != name]  # fmt: skip
+        if config.section in RESERVED_SECTIONS or any(c is not config for c in others):
+            raise ValueError(f"method {name!r}: [{config.section}] is another table's (the "
+                             "domain's, [learn], a trainer's or another method's settings); "
+                             "give its settings class its own section")  # fmt: skip
+    spec = MethodSpec(build, summary, section, config, plans_teams, pair_replay)
     return FITNESS_METHODS.register(name, spec)
 
 
-def _critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
-    aggregation, update = CRITICS[cfg.method]
-    regular = update == "regular"
-    settings = CriticSettings(
-        aggregation=aggregation,
-        update=update,
-        hidden=cfg.critic_hidden,
-        slope=cfg.leaky_slope,
-        lr=cfg.critic_lr,
-        optimizer=cfg.critic_optimizer,
-        capacity=cfg.replay_trajectories if regular else cfg.replay_pairs,
-        batch=cfg.trajectory_batch if regular else cfg.pair_batch,
-        batches=cfg.trajectory_batches if regular else cfg.pair_batches,
-        step_input=cfg.critic_step_input,
-        top_k=cfg.critic_top_k,
-        ensemble=cfg.critic_ensemble,
-        optimism=cfg.critic_optimism,
-        output_weights=cfg.critic_output_weights,
-        target=cfg.critic_target,
-    )
-    return CriticFitness(
-        FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)
-    )
+def _critic(aggregation: str, update: str):
+    """Build the paper's critic of ``aggregation`` ("mean" | "max", Eqs. 3-4) and ``update``
+    ("regular" Eqs. 6-8 | "inexact" Eqs. 9-10) from a :class:`CriticConfig`."""
+
+    def build(cfg: CriticConfig, problem: Problem, rng: np.random.Generator):
+        settings = CriticSettings.from_config(cfg, aggregation, update)
+        return CriticFitness(
+            FitnessCritic(problem.n_rovers, problem.steps, problem.pair_dim, settings, rng)
+        )
+
+    return build
 
 
-TRAJECTORY_CRITICS = {
-    "gru-critic": ("gru", "final"),
-    "gru-sum-critic": ("gru", "sum"),
-    "recurrent-max-critic": ("recurrent-max", "max"),
-    "attention-critic": ("attention", "final"),
-}
+def _trajectory_critic(model: str, readout: str):
+    """Build a trajectory critic (:mod:`physrover.learn.trajectory_critics`) of ``model``
+    read out by ``readout`` from a :class:`TrajectoryCriticConfig`."""
 
+    def build(cfg: TrajectoryCriticConfig, problem: Problem, rng: np.random.Generator):
+        from physrover.learn.trajectory_critics import TrajectoryCritic, TrajectorySettings
 
-def _trajectory_critic(cfg: LearnConfig, problem: Problem, rng: np.random.Generator):
-    from physrover.learn.trajectory_critics import TrajectoryCritic, TrajectorySettings
+        settings = TrajectorySettings.from_config(cfg, model, readout)
+        return CriticFitness(TrajectoryCritic(problem.n_rovers, problem.steps,
+                                              problem.pair_dim, settings, rng))  # fmt: skip
 
-    model, readout = TRAJECTORY_CRITICS[cfg.method]
-    settings = TrajectorySettings(
-        model=model,
-        readout=readout,
-        loss=cfg.trajectory_loss,
-        hidden=cfg.trajectory_hidden,
-        lr=cfg.trajectory_lr,
-        capacity=cfg.replay_trajectories,
-        batch=cfg.trajectory_batch,
-        batches=cfg.trajectory_batches,
-        units=cfg.critic_hidden,
-        slope=cfg.leaky_slope,
-    )
-    if model == "recurrent-max":  # learns as the paper's critic (module docstring)
-        settings = dataclasses.replace(settings, optimizer=cfg.critic_optimizer, lr=cfg.critic_lr)
-    return CriticFitness(TrajectoryCritic(problem.n_rovers, problem.steps, problem.pair_dim,
-                                          settings, rng))  # fmt: skip
+    return build
 
 
 register_method(
     "D",
-    lambda cfg, problem, rng: SingleEpisode(use_G=False),
+    lambda settings, problem, rng: SingleEpisode(use_G=False),
     "the policy's difference evaluation D (Eq. 1) in one episode",
     "Sec. 2.2 (Eq. 1)",
 )
 register_method(
     "G",
-    lambda cfg, problem, rng: SingleEpisode(use_G=True),
+    lambda settings, problem, rng: SingleEpisode(use_G=True),
     "the team's score G of the policy's one episode",
     "Sec. 4.1 (Eq. 11)",
 )
 register_method(
     "average",
-    lambda cfg, problem, rng: Sampled(cfg.n_samples, "mean"),
+    lambda settings, problem, rng: Sampled(settings.n_samples, "mean"),
     "mean feedback over n_samples episodes with fresh teammates",
     "Sec. 2.3, 4",
+    config=SampledConfig,
 )
 register_method(
     "leniency",
-    lambda cfg, problem, rng: Sampled(cfg.n_samples, "max"),
+    lambda settings, problem, rng: Sampled(settings.n_samples, "max"),
     "max feedback over n_samples episodes with fresh teammates",
     "Sec. 2.3",
+    config=SampledConfig,
 )
 register_method(
     "hall-of-fame",
-    lambda cfg, problem, rng: HallOfFame(problem.n_rovers),
+    lambda settings, problem, rng: HallOfFame(problem.n_rovers),
     "feedback with the best team found so far as teammates",
     "Sec. 2.3",
     plans_teams=True,
 )
 register_method(
     "mean-critic",
-    _critic,
+    _critic("mean", "regular"),
     "fitness critic, mean over the trajectory, regular updates",
     "Sec. 3.1-3.2 (Eqs. 4, 6-8)",
-    critic=True,
+    config=CriticConfig,
 )
 register_method(
     "max-critic",
-    _critic,
+    _critic("max", "inexact"),
     "fitness critic, max over the trajectory, inexact updates (the paper's best)",
     "Sec. 3.1, 3.3 (Eqs. 3, 6, 9-10)",
-    critic=True,
+    config=CriticConfig,
     pair_replay=True,
 )
 register_method(
     "max-critic-regular",
-    _critic,
+    _critic("max", "regular"),
     "fitness critic, max over the trajectory, regular updates",
     "Sec. 3.1-3.2 (Eqs. 3, 6-8)",
-    critic=True,
+    config=CriticConfig,
 )
 register_method(
     "mean-critic-inexact",
-    _critic,
+    _critic("mean", "inexact"),
     "fitness critic, mean over the trajectory, inexact updates",
     "Sec. 3.1, 3.3 (Eqs. 4, 6, 9-10)",
-    critic=True,
+    config=CriticConfig,
     pair_replay=True,
 )
 
 
 register_method(
     "gru-critic",
-    _trajectory_critic,
+    _trajectory_critic("gru", "final"),
     "trajectory critic: a GRU over the whole episode, read out at its end",
     "beyond the paper (trajectory critics)",
-    trajectory=True,
+    config=TrajectoryCriticConfig,
 )
 register_method(
     "gru-sum-critic",
-    _trajectory_critic,
+    _trajectory_critic("gru", "sum"),
     "trajectory critic: a GRU over the whole episode, the sum of its per-step values",
     "beyond the paper (trajectory critics)",
-    trajectory=True,
+    config=TrajectoryCriticConfig,
 )
 register_method(
     "recurrent-max-critic",
-    _trajectory_critic,
+    _trajectory_critic("recurrent-max", "max"),
     "trajectory critic: the max critic whose pairs also see a GRU's summary of the steps "
     "before them",
     "beyond the paper (trajectory critics)",
-    trajectory=True,
+    config=TrajectoryCriticConfig,
 )
 register_method(
     "attention-critic",
-    _trajectory_critic,
+    _trajectory_critic("attention", "final"),
     "trajectory critic: self-attention over the episode's steps, mean-pooled",
     "beyond the paper (trajectory critics)",
-    trajectory=True,
+    config=TrajectoryCriticConfig,
 )
 
 
-def make_method(cfg: LearnConfig, problem: Problem, rng: np.random.Generator) -> FitnessMethod:
-    """The fitness method named by ``cfg.method``; ``rng`` initialises critics."""
-    return FITNESS_METHODS[cfg.method].build(cfg, problem, rng)
+def make_method(config: RunConfig, problem: Problem, rng: np.random.Generator) -> FitnessMethod:
+    """The fitness method ``config.learn.method`` with its settings (``config.settings``);
+    ``rng`` initialises critics."""
+    return FITNESS_METHODS[config.learn.method].build(config.settings, problem, rng)

@@ -74,6 +74,26 @@ class TrajectorySettings:
     slope: float = 0.01  # recurrent-max: its leaky-ReLU slope (leaky_slope)
     optimizer: str = "adam"  # "adam" | "sgd" (plain gradient steps)
 
+    @classmethod
+    def from_config(cls, cfg, model: str, readout: str) -> TrajectorySettings:
+        """The settings a :class:`~physrover.learn.configs.TrajectoryCriticConfig`
+        (``[trajectory_critic]``) gives ``model`` read out by ``readout``; the recurrent max
+        critic learns as the paper's critic (``critic_lr``, ``critic_optimizer``)."""
+        recurrent_max = model == "recurrent-max"
+        return cls(
+            model=model,
+            readout=readout,
+            loss=cfg.trajectory_loss,
+            hidden=cfg.trajectory_hidden,
+            lr=cfg.critic_lr if recurrent_max else cfg.trajectory_lr,
+            capacity=cfg.replay_trajectories,
+            batch=cfg.trajectory_batch,
+            batches=cfg.trajectory_batches,
+            units=cfg.critic_hidden,
+            slope=cfg.leaky_slope,
+            optimizer=cfg.critic_optimizer if recurrent_max else "adam",
+        )
+
 
 def _uniform(rng: np.random.Generator, fan_in: int, shape: tuple[int, ...]) -> torch.Tensor:
     bound = 1.0 / np.sqrt(fan_in)

@@ -13,7 +13,7 @@ import dataclasses
 import math
 from typing import ClassVar
 
-from physrover.config import COMPONENTS, ConfigBase, check, check_choice
+from physrover.config import RESERVED_SECTIONS, ConfigBase, check, check_choice, settings_tables
 from physrover.core.registry import CREDITS, FITNESS_METHODS, TRAINERS
 
 # ----------------------------------------------------------------------------------------------
@@ -205,10 +205,6 @@ class TrainerSpec:
         return getattr(importlib.import_module(module), name)
 
 
-#: Tables of a run's config.toml that a trainer's section must not take.
-RESERVED_SECTIONS = ("domain", *COMPONENTS, "learn", MARLConfig.section)
-
-
 def register_trainer(
     name: str, config: type, trainer: str | type, summary: str, reference: str = ""
 ) -> TrainerSpec:
@@ -226,7 +222,7 @@ def register_trainer(
         raise TypeError(f"a trainer must be a class or 'module:Class', got {trainer!r}")
     if name in FITNESS_METHODS:
         raise ValueError(f"{name!r} is a fitness method of the CCEA; give the trainer its own name")
-    taken = {*RESERVED_SECTIONS, *(s.config.section for n, s in TRAINERS.items() if n != name)}
+    taken = {*RESERVED_SECTIONS, *(s for s, names in settings_tables().items() if names != [name])}
     if config.section in taken:
         raise ValueError(f"trainer {name!r}: its config's section [{config.section}] is taken; "
                          "give its MARLConfig subclass its own `section`")  # fmt: skip
