@@ -261,3 +261,23 @@ def test_each_methods_table_in_the_base_is_the_settings_of_its_runs(tmp_path):
         _sweep(tmp_path, text.replace("n_samples = 3", "n_samples = 0"))
     with pytest.raises(ConfigError, match="n_samples: is a setting of .*not of method 'D'"):
         _sweep(tmp_path, SWEEP + "\n[[variants]]\nn_samples = 3\n")
+
+
+def test_the_head_watch_loses_the_head_only_after_it_stops_answering(monkeypatch):
+    import socket
+
+    from physrover.experiment import on_ray
+
+    server = socket.create_server(("127.0.0.1", 0))
+    clock = [100.0]
+    monkeypatch.setattr(on_ray.time, "monotonic", lambda: clock[0])
+    watch = on_ray.HeadWatch(f"127.0.0.1:{server.getsockname()[1]}")
+    assert not watch.lost() and watch.silent_since is None  # it answers
+    server.close()
+    clock[0] += 0.5
+    assert not watch.lost() and watch.silent_since is None  # not asked again within 1 s
+    clock[0] += 1.0
+    assert not watch.lost() and watch.silent_since == clock[0]  # silent from now
+    clock[0] += on_ray.HEAD_LOST_AFTER
+    assert watch.lost()
+    assert not on_ray.HeadWatch(None).lost() and on_ray.HeadWatch("no-port").lost() is False

@@ -142,13 +142,23 @@ class HeadWatch:
         if not self.address or now - self.asked < 1.0:
             return False
         self.asked = now
-        host, _, port = self.address.rpartition(":")
         try:
-            socket.create_connection((host, int(port)), timeout=1.0).close()
+            _connect(self.address, timeout=1.0)
             self.silent_since = None
         except (OSError, ValueError):
             self.silent_since = self.silent_since or now
         return self.silent_since is not None and now - self.silent_since >= HEAD_LOST_AFTER
+
+
+def _connect(address: str, timeout: float) -> None:
+    """Open and close a TCP connection to ``address`` (``host:port`` or
+    ``scheme://host:port``); OSError if nothing accepts it in ``timeout`` s, ValueError for
+    an address without a host and port."""
+    target = urlsplit(address if "://" in address else f"tcp://{address}")
+    host, port = target.hostname, target.port  # ValueError for a port that is no number
+    if not host or port is None:
+        raise ValueError(f"no host and port in {address!r}")
+    socket.create_connection((host, port), timeout=timeout).close()
 
 
 def _check_reachable(address: str, timeout: float = 5.0) -> None:
@@ -156,13 +166,13 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
     minutes). ``address``: ``host:port`` or ``ray://host:port``; others are left to Ray."""
     target = urlsplit(address if "://" in address else f"tcp://{address}")
     try:
-        host, port = target.hostname, target.port
+        target.port  # noqa: B018 - raises ValueError for a port that is no number
     except ValueError:
         raise ConfigError("--ray", f"bad address {address!r} (expected HOST:PORT)") from None
-    if not host or port is None:
+    if not target.hostname or target.port is None:
         return
     try:
-        socket.create_connection((host, port), timeout=timeout).close()
+        _connect(address, timeout)
     except OSError as exc:
         reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
         raise ConfigError(
