@@ -236,3 +236,19 @@ def test_the_site_keeps_identifiers_whole_and_names_each_section_once():
     assert "td code" in css and "white-space: nowrap" in css
     for page in ("user-guide/training.md", "user-guide/watching.md"):
         assert len(re.findall(r"^## ", (DOCS / page).read_text(), re.M)) >= 4, page
+
+
+def test_one_torch_line_takes_the_cpu_build_anywhere():
+    """The README's quick start, the PyPI README and Getting started install torch with the
+    same line: the version CI installs (``.ci/run``), with PyTorch's CPU index added, so that
+    pip prefers its ``+cpu`` build to PyPI's CUDA build on a laptop and, where that index is
+    out of reach, takes the CPU build on local disk (a line that pinned the local file alone
+    pulled a CUDA build of several GB anywhere else)."""
+    (pin,) = re.findall(
+        r"pip install --quiet (torch==[\d.]+)\n", (ROOT / ".ci" / "run").read_text()
+    )
+    line = f"pip install {pin} --extra-index-url https://download.pytorch.org/whl/cpu"
+    for page in (ROOT / "README.md", ROOT / "README.pypi.md", DOCS / "getting-started.md"):
+        installs = re.findall(r"pip install [^&\n]*torch[^&\n]*", page.read_text())
+        assert installs and all(i.strip() == line for i in installs if "torchvision" not in i), (
+            page.name, installs)  # fmt: skip
