@@ -507,8 +507,9 @@ def score_rules_loops(positions, poi_positions, poi_values, radius, n_req, after
     """G of one team's episode under POI rules, rescored from positions with plain loops.
 
     ``positions`` (T + 1, R, 2) at every step, ``poi_positions`` (K, 2), ``poi_values``
-    (K,), per POI its ``radius``, coupling ``n_req``, predecessors ``after`` (lists of
-    indices) and ``final`` (counts only at the last scored step); ``scored_steps`` the steps
+    (K,), per POI its ``radius`` (a number, or a list of one per agent), coupling
+    ``n_req``, predecessors ``after`` (lists of indices) and ``final`` (counts only at the
+    last scored step); ``scored_steps`` the steps
     that count, in order; rover ``removed`` left out of every count (D's counterfactual),
     or a set of (t, i) left out of step t's; only the agents ``counted`` (default all) count;
     a POI with ``require[k]`` ({class index: count}) needs that many of each class (agent
@@ -529,7 +530,8 @@ def score_rules_loops(positions, poi_positions, poi_values, radius, n_req, after
                 gone = (t, i) in removed if isinstance(removed, set) else i == removed
                 if counted is not None and not counted[i] and not typed:
                     gone = True
-                if not gone and dx * dx + dy * dy <= radius[k] * radius[k]:  # Eq. 13
+                r = radius[k][i] if isinstance(radius[k], (list, tuple)) else radius[k]
+                if not gone and dx * dx + dy * dy <= r * r:  # Eq. 13
                     n += 1
                     if typed:
                         by_class[classes[i]] = by_class.get(classes[i], 0) + 1

@@ -146,6 +146,92 @@ def test_each_poi_has_its_own_capture_radius():
     assert _scored(pois, [[(2.5, 0.0)]], [(0.0, 0.0), (6.0, 0.0)]).G[0] == 3.0  # on the edge
 
 
+def _lab_captured(dist, agent_radius, capture_radius, poi_radius):
+    """The lab's rule as it is written (AADILab/influence-shaping, ``custom_env.py``,
+    ``AbstractRoverConstraint.captured``; ``capture_radius`` -1: the POI has none)."""
+    if capture_radius != -1.0 and dist <= capture_radius:
+        return True
+    elif dist <= agent_radius and dist <= poi_radius:
+        return True
+    else:
+        return False
+
+
+SIGHTED = [{"name": "rover", "count": 1, "sensor": {"kind": "lidar", "radius": 3.0}},
+           {"name": "uav", "count": 1, "sensor": {"kind": "lidar", "radius": 6.0}}]  # fmt: skip
+
+
+def test_capture_by_sight_is_within_the_agents_and_the_pois_radii():
+    poi = {"value": 1.0, "capture_by": "sight", "sense_radius": 5.0}
+    at = lambda d_rover, d_uav: [[(d_rover, 0.0), (0.0, d_uav)]]  # noqa: E731
+    world = _scored([poi], at(2.9, 5.5), [(0.0, 0.0)], agents=SIGHTED)
+    # the rover within its 3; the UAV beyond the POI's 5 although within its own 6
+    assert world.state.in_range[0, 0, :, 0].tolist() == [True, False]
+    assert world.G[0] == 1.0 and world.D[0].tolist() == [1.0, 0.0]
+    world = _scored([poi], at(3.1, 4.9), [(0.0, 0.0)], agents=SIGHTED)
+    assert world.state.in_range[0, 0, :, 0].tolist() == [False, True]
+    # the lab's POI with a capture radius: in range by either rule
+    either = {"value": 1.0, "capture_by": "radius-or-sight", "capture_radius": 1.5,
+              "sense_radius": 2.0, "n_req": 2}  # fmt: skip
+    world = _scored([either], at(1.4, 1.9), [(0.0, 0.0)], agents=SIGHTED)
+    assert world.state.in_range[0, 0, :, 0].tolist() == [True, True]  # by radius, by sight
+    assert world.G[0] == 1.0 and world.D[0].tolist() == [1.0, 1.0]  # the coupling needs both
+    world = _scored([either], at(1.4, 2.1), [(0.0, 0.0)], agents=SIGHTED)
+    assert world.state.in_range[0, 0, :, 0].tolist() == [True, False] and world.G[0] == 0.0
+    with pytest.raises(ConfigError, match='capture_radius: is not used under capture_by = "s'):
+        DomainConfig(pois=[{"capture_by": "sight", "capture_radius": 2.0}])
+    with pytest.raises(ConfigError, match="capture_by: must be one of radius, sight"):
+        DomainConfig(pois=[{"capture_by": "sensor"}])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_episodes_capture_as_the_labs_rule(seed):
+    """Agents of two classes with sensors of radius 3 and 6, POIs captured by radius, by
+    sight or by either, of sense radius inf, 2.5 or 4: each step's in-range agents are the
+    lab's rule written as it is, and G and D are the plain-loop oracle's on them."""
+    rng = np.random.default_rng(seed)
+    pois = []
+    for _ in range(4):
+        by = str(rng.choice(["radius", "sight", "radius-or-sight"]))
+        radius = 0.0 if by == "sight" else float(rng.choice([1.5, 5.0]))
+        pois.append({"value": float(rng.integers(1, 4)), "n_req": int(rng.integers(1, 3)),
+                     "capture_by": by, "sense_radius": float(rng.choice([np.inf, 2.5, 4.0])),
+                     "capture_radius": radius})  # fmt: skip
+    agents = [dict(SIGHTED[0], count=3), dict(SIGHTED[1], count=2, captures=True)]
+    config = DomainConfig(steps=20, pois=pois, agents=agents, scenario={
+        "kind": "uniform", "half_size": 6.0, "min_separation": 1.0})  # fmt: skip
+    world = RoverWorld(config, 3)
+    world.reset([np.random.default_rng([seed, e]) for e in range(3)])
+    for _ in range(config.steps):
+        world.step(rng.uniform(-1, 1, (3, 5, 2)))
+    sensing = [3.0] * 3 + [6.0] * 2
+    lab_radius = [-1.0 if p["capture_by"] == "sight" else p["capture_radius"] for p in pois]
+    captures = 0
+    for e in range(3):
+        positions = world.position_history[:, e]
+        for t in range(config.steps + 1):
+            for k, p in enumerate(pois):
+                for i in range(5):
+                    d = float(np.hypot(*(positions[t, i] - world.poi_positions[e, k])))
+                    if p["capture_by"] == "radius":
+                        expected = d <= p["capture_radius"]
+                    else:
+                        expected = _lab_captured(d, sensing[i], lab_radius[k], p["sense_radius"])
+                    assert world.state.in_range[t, e, i, k] == expected, (t, i, k, d)
+        radius = [[p["capture_radius"] if p["capture_by"] == "radius"
+                   else max(lab_radius[k], min(a, p["sense_radius"])) for a in sensing]
+                  for k, p in enumerate(pois)]  # fmt: skip
+        args = (positions.tolist(), world.poi_positions[e].tolist(), world.poi_values[e].tolist(),
+                radius, [p["n_req"] for p in pois], [[]] * 4, [False] * 4,
+                list(range(config.steps + 1)))  # fmt: skip
+        G, first = score_rules_loops(*args)
+        assert world.G[e] == G
+        for i in range(5):
+            assert world.D[e, i] == G - score_rules_loops(*args, removed=i)[0]
+        captures += sum(f >= 0 for f in first)
+    assert captures > 0
+
+
 # -- random episodes: the compiled scores against the plain-loop oracle ---------------------
 
 
@@ -308,3 +394,17 @@ def test_bad_typed_couplings_name_the_field(rule, message):
     assert message in str(info.value)
     assert DomainConfig.from_toml(DomainConfig.from_toml(TYPED).to_toml()).pois[0].require == {
         "rover": 1, "uav": 1}  # fmt: skip
+
+
+def test_a_video_draws_a_sighted_pois_ring_at_its_sense_radius_and_labels_the_rule():
+    from types import SimpleNamespace
+
+    from physrover.viz.classes import poi_rule_label, ring_pixels
+
+    pois = [{"capture_by": "sight", "sense_radius": 2.0}, {"capture_by": "sight"},
+            {"capture_by": "radius-or-sight", "capture_radius": 1.5}, {}]  # fmt: skip
+    domain = DomainConfig(pois=pois, agents=SIGHTED, n_req=1)
+    tf = SimpleNamespace(scale=10.0)
+    assert [ring_pixels(tf, domain, k) for k in range(4)] == [20, 1, 15, 40]  # d_cap 4
+    assert [poi_rule_label(domain, k) for k in range(4)] == [
+        "by sight", "by sight", "by radius-or-sight", ""]  # fmt: skip

@@ -9,6 +9,11 @@ With them, each table is one POI, in order, and may set:
 - ``n_req``, its coupling (default 0: ``[domain] n_req``, so a sweep's grid over ``n_req``
   still sets every POI's);
 - ``capture_radius`` (default 0: ``[domain] d_cap``), world units, at least ``d_min``;
+- ``capture_by``: which agents are in its range (Eq. 13): ``"radius"`` (within
+  ``capture_radius``: the paper's), ``"sight"`` (within both the agent's sensing radius and
+  the POI's ``sense_radius``) or ``"radius-or-sight"`` (either: the lab's rule,
+  AADILab/influence-shaping ``custom_env.AbstractRoverConstraint.captured``; its POIs
+  without a ``capture_radius`` are ``"sight"``);
 - ``after``, the indices of earlier POIs that must have been captured at an *earlier* step
   before this one counts (an ordered chain takes a step per link). Scoring applies it to
   the team and to every counterfactual of D alike: without rover i, POI k counts only after
@@ -37,6 +42,7 @@ from typing import Any, ClassVar
 from physrover.config.base import ConfigBase, check, check_choice, coerce_tables, did_you_mean
 
 SCORE_AT = ("any", "final")
+CAPTURE_BY = ("radius", "sight", "radius-or-sight")
 DISAPPEAR = ("never", "captured")
 
 
@@ -52,6 +58,9 @@ class PoiRule(ConfigBase):
     """Agents needed within the capture radius at one step (Eq. 12); 0: [domain] n_req."""
     capture_radius: float = 0.0
     """World units (Eq. 13); 0: [domain] d_cap."""
+    capture_by: str = "radius"
+    """Which agents are in its range (module docstring): "radius", "sight" (within the
+    agent's sensing radius and ``sense_radius``) or "radius-or-sight" (the lab's)."""
     after: tuple[int, ...] = ()
     """Indices of earlier POIs captured at an earlier step before this one counts."""
     score_at: str = "any"
@@ -76,6 +85,9 @@ class PoiRule(ConfigBase):
         check(0 <= radius < float("inf"), "capture_radius",
               f"must be >= d_min (0: d_cap), got {radius}")  # fmt: skip
         check_choice(self.score_at, SCORE_AT, "score_at")
+        check_choice(self.capture_by, CAPTURE_BY, "capture_by")
+        check(self.capture_by != "sight" or radius == 0, "capture_radius",
+              'is not used under capture_by = "sight" (leave it 0)')  # fmt: skip
         check(self.sense_radius > 0, "sense_radius", f"must be > 0, got {self.sense_radius}")
         check_choice(self.disappear, DISAPPEAR, "disappear")
         require = self.require
@@ -163,6 +175,7 @@ def capture_radii(domain) -> list[float]:
 
 
 __all__ = [
+    "CAPTURE_BY",
     "DISAPPEAR",
     "SCORE_AT",
     "PoiRule",

@@ -93,7 +93,7 @@ def _rules_needed(config) -> bool:
     """Whether any POI scores differently from the paper's (else the rules are compiled
     away: the paper's scoring is the rules' with every rule at its default, and a class
     that does not capture is the ``counted`` mask)."""
-    if any(p.scored_by_rule for p in config.pois):
+    if any(p.scored_by_rule or p.capture_by != "radius" for p in config.pois):
         return True
     radii = {p.capture_radius for p in config.pois}
     return bool(radii - {0.0, config.d_cap})

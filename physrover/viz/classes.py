@@ -11,6 +11,8 @@
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 
@@ -54,13 +56,20 @@ def poi_rule_label(domain, k: int) -> str:
         parts.append("sees: " + ",".join(rule.visible_to))
     if rule.after:
         parts.append("after " + ",".join(map(str, rule.after)))
+    if rule.capture_by != "radius":
+        parts.append(f"by {rule.capture_by}")
     return "  ".join(parts)
 
 
 def ring_pixels(tf, domain, k: int) -> int:
     """The radius in pixels of POI k's capture ring: its own ``capture_radius`` or
-    ``d_cap``."""
-    return max(1, int(tf.scale * capture_radii(domain)[k]))
+    ``d_cap``; under ``capture_by = "sight"`` its ``sense_radius``, the farthest any agent
+    captures from (each agent's own sensing radius may be less), or none if that is inf."""
+    radius = capture_radii(domain)[k]
+    if domain.pois and domain.pois[k].capture_by == "sight":
+        sight = domain.pois[k].sense_radius
+        radius = sight if math.isfinite(sight) else 0.0
+    return max(1, int(tf.scale * radius))
 
 
 __all__ = ["class_legend", "mark_classes", "poi_rule_label", "ring_pixels"]

@@ -45,15 +45,13 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None, counted=None):
     near = state.in_range[t, e]
     captured, captured_without = state.captured, state.captured_without
     for k in range(n_pois):
-        radius_sq = d_cap_sq
-        if rules is not None:
-            radius_sq = rules.capture_radius_sq[k]
         px = poi_positions[e, k, 0]
         py = poi_positions[e, k, 1]
         n = 0
         for i in range(n_rovers):
             dx = px - positions[e, i, 0]
             dy = py - positions[e, i, 1]
+            radius_sq = d_cap_sq if rules is None else rules.capture_radius_sq[k, i]
             inside = dx * dx + dy * dy <= radius_sq  # Eq. 13
             if rules is not None:
                 inside = inside and rules.counts_for[k, i]

@@ -7,7 +7,8 @@ episode state they need, and :func:`physrover.domain.scoring.captures.score_team
 captured at a scored step t (Eq. 12, generalised) iff
 
 - at least ``n_req[k]`` rovers are within ``capture_radius[k]`` of it (Eq. 13 with its own
-  radius; the in-range record ``in_range`` uses that radius too), or for a typed POI
+  radius, or under ``capture_by`` each agent's own: ``capture_radius_sq[k, i]``; the
+  in-range record ``in_range`` uses that radius too), or for a typed POI
   (``require = {class = count}``) at least that many agents of each named class (and only
   they are in its range);
 - every POI j in ``after[k]`` was captured at a step before t (so a chain of POIs takes at
@@ -22,12 +23,18 @@ before t (``step_without``, the counterfactual's first capture steps).
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
 from physrover.config.pois import capture_radii
-from physrover.domain.agents.classes import agent_classes, class_names, counted_agents
+from physrover.domain.agents.classes import (
+    agent_classes,
+    class_names,
+    class_sensor,
+    counted_agents,
+)
 from physrover.domain.scoring.captures import last_scored_step
 
 
@@ -35,7 +42,10 @@ class PoiRules(NamedTuple):
     """The rules of K POIs for E teams of R rovers (module docstring)."""
 
     capture_radius_sq: np.ndarray
-    """(K,) float64: each POI's capture radius squared, world units^2."""
+    """(K, R) float64: the distance squared, world units^2, within which agent i is in
+    POI k's range: its capture radius, or under ``capture_by = "sight"`` the smaller of the
+    agent's sensing radius and the POI's ``sense_radius`` (the larger of the two rules'
+    radii for ``"radius-or-sight"``; inf: any distance)."""
     after: np.ndarray
     """(K, K) bool: ``after[k, j]``, POI j must be captured before POI k counts (j < k)."""
     final_only: np.ndarray
@@ -67,7 +77,7 @@ class PoiRules(NamedTuple):
             return None
         k = config.n_pois
         pois = config.pois or [None] * k
-        radius = np.array(capture_radii(config), dtype=np.float64)
+        radius = _capture_radii_sq(config)
         after = np.zeros((k, k), dtype=bool)
         for i, p in enumerate(pois):
             after[i, list(p.after if p else ())] = True
@@ -83,9 +93,24 @@ class PoiRules(NamedTuple):
                 require[i, names.index(name)] = n
         typed = require.any(axis=1)
         counts_for = np.where(typed[:, None], require[:, agent_class] > 0, counted[None, :])
-        return cls(radius * radius, after, final, int(t_final), without, counted, counts_for,
-                   typed, require, agent_class)  # fmt: skip
+        return cls(radius, after, final, int(t_final), without, counted, counts_for, typed,
+                   require, agent_class)  # fmt: skip
 
     def start(self) -> None:
         """Forget the counterfactual captures: the start of an episode."""
         self.step_without[:] = -1
+
+
+def _capture_radii_sq(config) -> np.ndarray:
+    """(K, R) :attr:`PoiRules.capture_radius_sq` of a domain."""
+    own = np.array(capture_radii(config), dtype=np.float64)
+    sensing = np.array([getattr(class_sensor(config, c), "radius", math.inf)
+                        for c in agent_classes(config)], dtype=np.float64)  # fmt: skip
+    radius = np.repeat(own[:, None], config.n_rovers, axis=1)
+    for k, poi in enumerate(config.pois):
+        sight = np.minimum(sensing, poi.sense_radius)
+        if poi.capture_by == "sight":
+            radius[k] = sight
+        elif poi.capture_by == "radius-or-sight":
+            radius[k] = np.maximum(radius[k], sight)
+    return radius * radius
