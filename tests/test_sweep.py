@@ -257,6 +257,14 @@ def test_each_methods_table_in_the_base_is_the_settings_of_its_runs(tmp_path):
     critic = CriticConfig(critic_hidden=8, critic_lr=1e-4)
     assert [c.settings for c in configs] == [None, SampledConfig(n_samples=5), critic]
     assert bigger.name == "tiny+critic.critic_lr=0.0001+n_samples=5"
+    # the base's own method takes it too, and a method without a table in the file gets one
+    plain = _sweep(tmp_path, SWEEP.replace('"max-critic"]', '"max-critic", "average"]'))
+    set_both = plain.with_overrides({"critic_lr": 1e-4, "n_samples": 4})
+    configs = [RunConfig.from_toml(s.config_toml) for s in set_both.runs(tmp_path, 1)]
+    assert [c.settings for c in configs] == [None, CriticConfig(critic_lr=1e-4),
+                                             SampledConfig(n_samples=4)]  # fmt: skip
+    with pytest.raises(ConfigError, match="sampled.n_samples: must be >= 1"):
+        plain.with_overrides({"n_samples": 0})
     with pytest.raises(ConfigError, match="base.sampled.n_samples: must be >= 1"):
         _sweep(tmp_path, text.replace("n_samples = 3", "n_samples = 0"))
     with pytest.raises(ConfigError, match="n_samples: is a setting of .*not of method 'D'"):

@@ -47,6 +47,7 @@ from typing import Any
 
 from physrover.config import (
     ConfigError,
+    LearnConfig,
     RunConfig,
     load_toml_file,
     naming_file,
@@ -157,14 +158,24 @@ class Sweep:
                 raise ConfigError(field, f"is varied by sweep {self.name}'s grid or variants; "
                                   "--set cannot override it (edit a copy of the file)")  # fmt: skip
         tables = {section: dict(table) for section, table in self.tables}
-        own = {}
-        for field, value in overrides.items():  # another method's setting goes to its table
+        own, mine = {}, settings_class(self.base.learn.method)
+        common = {*LearnConfig.field_names(), *self.base.domain.flat_dict()}
+        for field, value in overrides.items():  # a method's setting goes to its table
             section, _, name = field.rpartition(".")
-            others = [s for s in ([section] if section else tables)
-                      if s in tables and name in _table_class(s).field_names()]  # fmt: skip
+            if not section and name in common:
+                own[field] = value
+                continue
+            others = [s for s in ([section] if section else settings_tables())
+                      if s in settings_tables() and (mine is None or s != mine.section)
+                      and name in _table_class(s).field_names()]  # fmt: skip
             for other in others:
-                tables[other][name] = value
-            if not others:
+                tables.setdefault(other, {})[name] = value
+                try:
+                    _table_class(other).from_dict(tables[other])
+                except ConfigError as exc:
+                    raise ConfigError(f"{other}.{exc.field}", exc.message) from None
+            takes = mine is not None and section in ("", mine.section)
+            if (takes and name in mine.field_names()) or not others:
                 own[field] = value
         base = self.base.with_overrides(own)
         suffix = "+".join(f"{field}={_slug(value)}" for field, value in sorted(overrides.items()))
