@@ -54,7 +54,10 @@ def test_pois_tables_round_trip_and_derive_values():
         ("[[pois]]\ncapture_radius = 0.5", "pois[0].capture_radius: must be >= d_min (1.0)"),
         ("[[pois]]\nn_req = 16", "pois[0].n_req: must be in [1, n_rovers=15], got 16"),
         ('[[pois]]\nscore_at = "fnal"', "(did you mean 'final'?)"),
-        ("[[pois]]\nvalu = 1", "pois[0].valu: unknown PoiRule field (did you mean 'value'?)"),
+        (
+            "[[pois]]\nvalu = 1",
+            "pois[0].valu: unknown PoiRule field (did you mean 'value' or 'value_by'?)",
+        ),
         ("[domain]\npoi_values = [1.0]\n[[pois]]", "poi_values: give the POIs as [[pois]] or"),
         (
             '[[pois]]\nscore_at = "final"\n[[pois]]\nafter = [0]',
@@ -230,6 +233,108 @@ def test_random_episodes_capture_as_the_labs_rule(seed):
             assert world.D[e, i] == G - score_rules_loops(*args, removed=i)[0]
         captures += sum(f >= 0 for f in first)
     assert captures > 0
+
+
+def _lab_step_value(positions, poi, counting, in_reach, coupling, removed=-1):
+    """The lab's distance value of one POI at one step, as it is written
+    (AADILab/influence-shaping ``custom_env.py``, ``AbstractRoverConstraint.
+    _step_is_satisfied``): ``positions`` (R, 2) of the step, ``counting`` the agents of its
+    type ("rover"), ``in_reach(i, dist)`` its ``captured``; agent ``removed`` is the lab's
+    counterfactually removed one (at [-1, -1]: an infinite distance)."""
+    count = 0
+    dists = []
+    constraint_satisfied = False
+    for i, position in enumerate(positions):
+        if counting[i]:
+            if i == removed:
+                dist = np.inf
+            else:
+                dist = np.linalg.norm([position[0] - poi[0], position[1] - poi[1]])
+            dists.append(dist)
+            if i != removed and in_reach(i, dist):
+                count += 1
+                if count >= coupling:
+                    constraint_satisfied = True
+    if constraint_satisfied:
+        dists.sort()
+        dists = [max(1.0, dist) for dist in dists]
+        constraint_value = float(coupling)
+        for dist in dists[:coupling]:
+            constraint_value = constraint_value * 1.0 / dist
+        return constraint_value
+    return 0.0
+
+
+def test_a_distance_valued_poi_is_worth_its_nearest_agents_distances():
+    poi = {"value": 3.0, "value_by": "distance", "n_req": 2}
+    world = _scored([poi], [[(0.5, 0.0), (0.0, 2.0), (-3.0, 0.0)]], [(0.0, 0.0)])
+    # 2 x 1/max(1, 0.5) x 1/2 = 1: G = 3; without rover 0: 2 / 2 / 3; rover 1: 2 / 1 / 3;
+    # rover 2 is not among the two nearest
+    assert world.G[0] == 3.0
+    np.testing.assert_allclose(world.D[0], [3.0 - 3.0 / 3.0, 3.0 - 3.0 * 2.0 / 3.0, 0.0])
+    assert world.state.capture_step[0].tolist() == [0]
+    # "any" keeps the best step's value (the lab's sequential), "final" the last state's
+    paths = [[(0.5, 0.0), (0.0, 2.0)], [(0.5, 0.0), (0.0, 1.0)], [(0.5, 0.0), (0.0, 3.5)],
+             [(0.5, 0.0), (0.0, 3.9)], [FAR, FAR]]  # fmt: skip
+    assert _scored([poi], paths, [(0.0, 0.0)]).G[0] == 3.0 * 2.0  # step 1: 2 / 1 / 1
+    final = dict(poi, score_at="final")
+    assert _scored([final], paths[:4] + [paths[2]], [(0.0, 0.0)]).G[0] == 3.0 * 2.0 / 3.5
+    assert _scored([final], paths, [(0.0, 0.0)]).G[0] == 0.0
+    for field, value in (("after", [0]), ("require", {"rover": 1})):
+        with pytest.raises(ConfigError, match=f'{field}: is not defined for value_by = "dis'):
+            DomainConfig(pois=[{}, {"value_by": "distance", field: value}])
+    with pytest.raises(ConfigError, match="ID and ID-step are not defined yet"):
+        RunConfig.from_dict({"learn": {"feedback": "ID"}, "pois": [poi] * 4})
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_episodes_value_pois_as_the_labs_code(seed):
+    """Distance-valued POIs of coupling 1-3, "any" (the lab's sequential) or "final", each
+    captured by radius or by sight, over random episodes of rovers and UAVs that do not
+    count (the lab's rule counts rovers only): G and every D are the lab's code as it is
+    written (the removed agent at an infinite distance), to 1e-12."""
+    rng = np.random.default_rng(seed)
+    pois = []
+    for _ in range(4):
+        by = str(rng.choice(["radius", "sight", "radius-or-sight"]))
+        pois.append({"value": float(rng.integers(1, 4)), "n_req": int(rng.integers(1, 4)),
+                     "value_by": "distance", "capture_by": by,
+                     "score_at": str(rng.choice(["any", "final"])),
+                     "capture_radius": 0.0 if by == "sight" else float(rng.choice([3.0, 6.0])),
+                     "sense_radius": float(rng.choice([np.inf, 4.0]))})  # fmt: skip
+    agents = [dict(SIGHTED[0], count=4), dict(SIGHTED[1], count=2, captures=False)]
+    config = DomainConfig(steps=15, pois=pois, agents=agents, scenario={
+        "kind": "uniform", "half_size": 5.0, "min_separation": 1.0})  # fmt: skip
+    world = RoverWorld(config, 3)
+    world.reset([np.random.default_rng([seed, e]) for e in range(3)])
+    for _ in range(config.steps):
+        world.step(rng.uniform(-1, 1, (3, 6, 2)))
+    sensing, counting = [3.0] * 4 + [6.0] * 2, [True] * 4 + [False] * 2
+    valued = 0
+    for e in range(3):
+
+        def G(removed=-1, e=e):
+            total = 0.0
+            for k, p in enumerate(pois):
+                lab_radius = -1.0 if p["capture_by"] == "sight" else p["capture_radius"]
+                if p["capture_by"] == "radius":
+                    reach = lambda agent, d, p=p: d <= p["capture_radius"]  # noqa: E731
+                else:
+                    reach = lambda agent, d, p=p, r=lab_radius: _lab_captured(  # noqa: E731
+                        d, sensing[agent], r, p["sense_radius"]
+                    )
+                steps = [config.steps] if p["score_at"] == "final" else range(config.steps + 1)
+                values = [_lab_step_value(world.position_history[t, e], world.poi_positions[e, k],
+                                          counting, reach, p["n_req"], removed)
+                          for t in steps]  # fmt: skip
+                total += p["value"] * max(values)
+            return total
+
+        assert world.G[e] == pytest.approx(G(), rel=1e-12, abs=1e-12)
+        for i in range(6):
+            assert world.D[e, i] == pytest.approx(G() - G(i), rel=1e-12, abs=1e-12), i
+        valued += world.G[e] > 0
+    assert valued > 0  # some POI was worth something
 
 
 # -- random episodes: the compiled scores against the plain-loop oracle ---------------------

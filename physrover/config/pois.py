@@ -14,6 +14,13 @@ With them, each table is one POI, in order, and may set:
   the POI's ``sense_radius``) or ``"radius-or-sight"`` (either: the lab's rule,
   AADILab/influence-shaping ``custom_env.AbstractRoverConstraint.captured``; its POIs
   without a ``capture_radius`` are ``"sight"``);
+- ``value_by``: ``"capture"`` (V_k once captured, Eq. 11: the paper's) or ``"distance"``
+  (the lab's distance-scored value, AADILab/influence-shaping ``custom_env.py``
+  ``AbstractRoverConstraint._step_is_satisfied``: at a scored step where its coupling is
+  met, ``n_req x prod_j 1 / max(1, d_j)`` over the ``n_req`` smallest distances d_j of the
+  agents that count for it, in range or not, multiplied nearest first; else 0. G adds V_k
+  times its best such value over the scored steps, ``score_at = "any"``, the lab's
+  ``sequential``, or its value at the last scored step, ``"final"``, the lab's ``final``);
 - ``after``, the indices of earlier POIs that must have been captured at an *earlier* step
   before this one counts (an ordered chain takes a step per link). Scoring applies it to
   the team and to every counterfactual of D alike: without rover i, POI k counts only after
@@ -43,6 +50,7 @@ from physrover.config.base import ConfigBase, check, check_choice, coerce_tables
 
 SCORE_AT = ("any", "final")
 CAPTURE_BY = ("radius", "sight", "radius-or-sight")
+VALUE_BY = ("capture", "distance")
 DISAPPEAR = ("never", "captured")
 
 
@@ -61,6 +69,9 @@ class PoiRule(ConfigBase):
     capture_by: str = "radius"
     """Which agents are in its range (module docstring): "radius", "sight" (within the
     agent's sensing radius and ``sense_radius``) or "radius-or-sight" (the lab's)."""
+    value_by: str = "capture"
+    """What it adds to G: V_k once "capture"d (Eq. 11), or V_k times the lab's "distance"
+    value of its agents (module docstring)."""
     after: tuple[int, ...] = ()
     """Indices of earlier POIs captured at an earlier step before this one counts."""
     score_at: str = "any"
@@ -86,6 +97,10 @@ class PoiRule(ConfigBase):
               f"must be >= d_min (0: d_cap), got {radius}")  # fmt: skip
         check_choice(self.score_at, SCORE_AT, "score_at")
         check_choice(self.capture_by, CAPTURE_BY, "capture_by")
+        check_choice(self.value_by, VALUE_BY, "value_by")
+        for field, given in (("after", self.after), ("require", self.require)):
+            check(self.value_by == "capture" or not given, field,
+                  'is not defined for value_by = "distance" (the lab has no such POI)')  # fmt: skip
         check(self.capture_by != "sight" or radius == 0, "capture_radius",
               'is not used under capture_by = "sight" (leave it 0)')  # fmt: skip
         check(self.sense_radius > 0, "sense_radius", f"must be > 0, got {self.sense_radius}")
@@ -101,9 +116,11 @@ class PoiRule(ConfigBase):
 
     @property
     def scored_by_rule(self) -> bool:
-        """Whether it scores by a rule (``after``, ``score_at = "final"``, ``require``), not
-        by a count of agents in range at any scored step as the paper's POIs do."""
-        return bool(self.after) or self.score_at != "any" or bool(self.require)
+        """Whether it scores by a rule (``after``, ``score_at = "final"``, ``require``,
+        ``value_by = "distance"``), not by a count of agents in range at any scored step as
+        the paper's POIs do."""
+        return (bool(self.after) or self.score_at != "any" or bool(self.require)
+                or self.value_by != "capture")  # fmt: skip
 
     @property
     def hides(self) -> bool:
@@ -178,6 +195,7 @@ __all__ = [
     "CAPTURE_BY",
     "DISAPPEAR",
     "SCORE_AT",
+    "VALUE_BY",
     "PoiRule",
     "capture_radii",
     "check_pois",

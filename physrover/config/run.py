@@ -128,8 +128,8 @@ class RunConfig:
         for k, poi in enumerate(self.domain.pois):
             counted = poi.disappear == "never" and not poi.scored_by_rule
             check(counted, "curriculum_start", f"pois[{k}] vanishes once captured or scores "
-                  "by a rule (after, score_at, require); the curriculum needs POIs captured "
-                  "by a count of agents in range")  # fmt: skip
+                  "by a rule (after, score_at, require, value_by); the curriculum needs POIs "
+                  "captured by a count of agents in range")  # fmt: skip
 
     @property
     def length(self) -> int:

@@ -346,7 +346,7 @@ class RoverWorld:
     @property
     def D(self) -> np.ndarray:
         """(E, R) difference evaluations so far (Eq. 1)."""
-        return difference(self.state)
+        return difference(self.state, self.plan.step.rules)
 
     def trajectories(self) -> tuple[np.ndarray, np.ndarray]:
         """Views of the recorded (t, E, R, n_obs) observations and (t, E, R, 2) actions."""

@@ -144,7 +144,8 @@ class CriticConfig(_CriticNetwork):
         check(
             not any(p.scored_by_rule for p in run.domain.pois),
             "critic_target",
-            'per-step targets need POIs without after, require or score_at = "final"',
+            'per-step targets need POIs without after, require, score_at = "final" or '
+            'value_by = "distance"',
         )
 
 

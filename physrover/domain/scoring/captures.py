@@ -72,7 +72,9 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None, counted=None):
             for i in range(n_rovers):  # Eq. 12 without rover i
                 if count[k] - np.int64(near[i, k]) >= n_req[k]:
                     captured_without[e, i, k] = True
-        if captured[e, k]:  # Eq. 11
+        if rules is not None and rules.valued[k]:  # the lab's distance value
+            total += state.poi_values[e, k] * rules.value_best[e, k]
+        elif captured[e, k]:  # Eq. 11
             total += state.poi_values[e, k]
     state.score[e] = total
 
@@ -98,6 +100,9 @@ def score_rules(e, k, near, state, rules, n_req, t):
     ``state.in_range[t, e]``, the team's view, passed in rather than made again per POI."""
     if rules.final_only[k] and t != rules.t_final:
         return
+    if rules.valued[k]:
+        score_by_distance(e, k, near, state, rules, n_req, t)
+        return
     if not coupling_met(k, near, rules, n_req, -1):
         return
     if not state.captured[e, k] and predecessors_before(rules.after, k, state.capture_step[e], t):
@@ -111,6 +116,67 @@ def score_rules(e, k, near, state, rules, n_req, t):
         if predecessors_before(rules.after, k, rules.step_without[e, i], t):
             state.captured_without[e, i, k] = True
             rules.step_without[e, i, k] = t
+
+
+@jit_inline
+def distance_value(e, k, state, rules, n, without):
+    """The lab's distance value of POI k of team e at this step (its coupling met):
+    ``n x prod_j 1 / max(1, d_j)`` over the ``n`` smallest distances d_j, world units, of
+    the agents that count for it (in range or not), agent ``without`` left out (-1: none),
+    multiplied nearest first (AADILab/influence-shaping ``custom_env.py``,
+    ``AbstractRoverConstraint._step_is_satisfied``: a stable sort, so ties go by agent
+    index). Selection without a buffer, ``n`` passes over the agents: O(n R)."""
+    positions = state.rover_positions
+    px = state.poi_positions[e, k, 0]
+    py = state.poi_positions[e, k, 1]
+    value = float(n)
+    last_d, last_i = -1.0, -1
+    for _ in range(n):
+        best_d, best_i = np.inf, -1
+        for i in range(positions.shape[1]):
+            if i == without or not rules.counts_for[k, i]:
+                continue
+            dx = positions[e, i, 0] - px
+            dy = positions[e, i, 1] - py
+            d = np.sqrt(dx * dx + dy * dy)
+            after_last = d > last_d or (d == last_d and i > last_i)
+            if after_last and (d < best_d or (d == best_d and best_i < 0)):
+                best_d, best_i = d, i
+        if best_i < 0:
+            return 0.0
+        value = value * 1.0 / max(1.0, best_d)
+        last_d, last_i = best_d, best_i
+    return value
+
+
+@jit_inline
+def score_by_distance(e, k, near, state, rules, n_req, t):
+    """A distance-valued POI k of team e at scored step t (its ``final_only`` already
+    checked): its value, and without each agent, where the coupling is met (a count under
+    ``n_req``, or a typed one), kept at their best over the steps; the POI counts as
+    captured from the first step its value is positive. Leaving out an agent that is not
+    among the ``n`` nearest changes nothing, but the nearest are not known before they are
+    found, so each counterfactual is valued again: O(n R^2) at a step the coupling is met."""
+    if not coupling_met(k, near, rules, n_req, -1):
+        return
+    n = n_req[k]
+    value = distance_value(e, k, state, rules, n, -1)
+    if value > rules.value_best[e, k]:
+        rules.value_best[e, k] = value
+    if value > 0.0 and not state.captured[e, k]:
+        state.capture_step[e, k] = t
+        state.captured[e, k] = True
+    for i in range(near.shape[0]):
+        if not rules.counts_for[k, i]:  # never among its agents: the same value
+            without = value
+        elif near[i, k] and not coupling_met(k, near, rules, n_req, i):
+            without = 0.0
+        else:
+            without = distance_value(e, k, state, rules, n, i)
+        if without > rules.value_without[e, i, k]:
+            rules.value_without[e, i, k] = without
+        if without > 0.0:
+            state.captured_without[e, i, k] = True
 
 
 @jit_inline
@@ -141,5 +207,5 @@ def score(state, d_cap, n_req, t, rules=None, counted=None):
         score_team(e, state, d_cap * d_cap, n_req, t, rules, counted)
 
 
-__all__ = ["coupling_met", "last_scored_step", "predecessors_before", "score", "score_rules",
-           "score_team"]  # fmt: skip
+__all__ = ["coupling_met", "distance_value", "last_scored_step", "predecessors_before", "score",
+           "score_by_distance", "score_rules", "score_team"]  # fmt: skip

@@ -64,8 +64,8 @@ def check_counted_pois(domain, signal: str) -> None:
     """ConfigError (field ``feedback``) unless every POI of ``domain`` is captured by a count
     of agents in range at any step: ``signal`` replays such counts."""
     ruled = any(p.scored_by_rule for p in domain.pois)
-    check(not ruled, "feedback", f'{signal} is not defined for POIs with after, require or '
-          'score_at = "final" ([[pois]])')  # fmt: skip
+    check(not ruled, "feedback", f'{signal} is not defined for POIs with after, require, '
+          'score_at = "final" or value_by = "distance" ([[pois]])')  # fmt: skip
 
 
 class Difference(Credit):
@@ -131,6 +131,12 @@ class IndirectDifference(Credit):
 
     def __call__(self, world) -> np.ndarray:
         return indirect_difference(world, self.timescale)
+
+    def check(self, domain) -> None:
+        """Its counterfactuals replay captures: not defined yet for POIs valued by
+        distance."""
+        check(not any(p.value_by == "distance" for p in domain.pois), "feedback",
+              'ID and ID-step are not defined yet for POIs with value_by = "distance"')  # fmt: skip
 
 
 def step_rewards(name: str, world, last_step: bool, team_reward: np.ndarray) -> np.ndarray:

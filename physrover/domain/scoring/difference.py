@@ -33,9 +33,16 @@ def team_score(captured: np.ndarray, poi_values: np.ndarray) -> np.ndarray:
     return (captured * values).sum(axis=-1)
 
 
-def difference(state) -> np.ndarray:
-    """(E, R) difference evaluation of every rover so far (Eq. 1, null counterfactual)."""
-    return state.score[:, None] - team_score(state.captured_without, state.poi_values)
+def difference(state, rules=None) -> np.ndarray:
+    """(E, R) difference evaluation of every rover so far (Eq. 1, null counterfactual);
+    ``rules`` (:class:`~physrover.domain.scoring.rules.PoiRules`, if the world has them)
+    give the POIs valued by distance their best value without each rover."""
+    if rules is None or not rules.valued.any():
+        return state.score[:, None] - team_score(state.captured_without, state.poi_values)
+    valued = rules.valued
+    without = team_score(state.captured_without & ~valued, state.poi_values)
+    without += (rules.value_without * (state.poi_values * valued)[:, None, :]).sum(axis=-1)
+    return state.score[:, None] - without
 
 
 def d_plus_plus(state, n_req: np.ndarray) -> np.ndarray:

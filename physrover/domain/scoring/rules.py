@@ -16,9 +16,12 @@ captured at a scored step t (Eq. 12, generalised) iff
 - ``score_at[k]`` is ``"any"``, or t is the last scored step (``steps``, or ``steps - 1``
   under ``scored_states = "before-steps"``).
 
-G is Eq. 11 over these captures. D (Eq. 1) applies the same rules to each counterfactual:
+G is Eq. 11 over these captures, but for a POI valued by distance (``value_by =
+"distance"``, :mod:`physrover.config.pois`), which adds V_k times its best (or final)
+distance value ``value_best``. D (Eq. 1) applies the same rules to each counterfactual:
 without rover i, POI k counts at t only if its predecessors were captured without rover i
-before t (``step_without``, the counterfactual's first capture steps).
+before t (``step_without``, the counterfactual's first capture steps), and a distance-valued
+POI adds its best value without rover i, ``value_without``.
 """
 
 from __future__ import annotations
@@ -67,6 +70,13 @@ class PoiRules(NamedTuple):
     """(K, C) int64: agents of class c that a typed POI needs at one step (0: none)."""
     agent_class: np.ndarray
     """(R,) int64: each agent's class."""
+    valued: np.ndarray
+    """(K,) bool: the POI is valued by the distances of its agents (``value_by =
+    "distance"``), not by a capture."""
+    value_best: np.ndarray
+    """(E, K) float64: a distance-valued POI's best value so far (episode state)."""
+    value_without: np.ndarray
+    """(E, R, K) float64: the same without agent i, D's counterfactual (episode state)."""
 
     @classmethod
     def build(cls, config, n_teams: int, always: bool = False) -> PoiRules | None:
@@ -93,12 +103,17 @@ class PoiRules(NamedTuple):
                 require[i, names.index(name)] = n
         typed = require.any(axis=1)
         counts_for = np.where(typed[:, None], require[:, agent_class] > 0, counted[None, :])
+        valued = np.array([bool(p) and p.value_by == "distance" for p in pois], dtype=bool)
         return cls(radius, after, final, int(t_final), without, counted, counts_for, typed,
-                   require, agent_class)  # fmt: skip
+                   require, agent_class, valued, np.zeros((n_teams, k)),
+                   np.zeros((n_teams, config.n_rovers, k)))  # fmt: skip
 
     def start(self) -> None:
-        """Forget the counterfactual captures: the start of an episode."""
+        """Forget the counterfactual captures and the distance values: the start of an
+        episode."""
         self.step_without[:] = -1
+        self.value_best[:] = 0.0
+        self.value_without[:] = 0.0
 
 
 def _capture_radii_sq(config) -> np.ndarray:
