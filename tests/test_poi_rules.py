@@ -513,3 +513,31 @@ def test_a_video_draws_a_sighted_pois_ring_at_its_sense_radius_and_labels_the_ru
     assert [ring_pixels(tf, domain, k) for k in range(4)] == [20, 1, 15, 40]  # d_cap 4
     assert [poi_rule_label(domain, k) for k in range(4)] == [
         "by sight", "by sight", "by radius-or-sight", ""]  # fmt: skip
+
+
+def test_the_labs_quartz_fixture_scores_as_the_lab_recorded():
+    """The lab's own fixture (``tests/data/lab-quartz``: AADILab/influence-shaping's
+    ``test/resources/quartz``, its commit in ``expected.json``): a rover and a UAV, five
+    hidden POIs valued by distance (coupling 1, capture and observation radius 1000,
+    ``sequential``), the recorded 150-step path of evaluation team 6 of generation 0. The
+    lab's ``fitness.csv`` gives the team 1.200821119854093 and the rover the same (its
+    IndirectDifference: without the rover no POI is worth anything); physrover's G and the
+    rover's D are that value (to the last bit where it was written; asserted to 1e-12, as
+    the lab's ``np.linalg.norm`` and our square root may round apart)."""
+    import json
+    from pathlib import Path
+
+    folder = Path(__file__).parent / "data" / "lab-quartz"
+    meta = json.loads((folder / "expected.json").read_text())
+    paths = np.loadtxt(folder / "joint_traj.csv", delimiter=",", skiprows=1).reshape(-1, 2, 2)
+    poi = {"value": 1.0, "n_req": 1, "capture_radius": 1000.0, "sense_radius": 1000.0,
+           "capture_by": "radius-or-sight", "value_by": "distance"}  # fmt: skip
+    agents = [{"name": "rover", "count": 1, "sensor": {"kind": "lidar", "radius": 5.0}},
+              {"name": "uav", "count": 1, "captures": False,
+               "sensor": {"kind": "lidar", "radius": 1000.0}}]  # fmt: skip
+    world = _scored([poi] * 5, paths, meta["poi_positions"], steps=len(paths) - 1,
+                    agents=agents)  # fmt: skip
+    expected = meta["expected_rewards"]["rover_0"]
+    assert world.G[0] == pytest.approx(meta["team_fitness"], rel=1e-12)
+    assert world.D[0, 0] == pytest.approx(expected, rel=1e-12)
+    assert world.D[0, 1] == 0.0  # the UAV does not count (its ID credit is not yet here)
