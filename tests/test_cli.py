@@ -64,6 +64,7 @@ def test_methods_lists_every_registered_method(capsys):
         for method, spec in FITNESS_METHODS.items():
             line = next(line for line in out.splitlines() if line.split()[:1] == [method])
             assert spec.summary in line and spec.section in line
+            assert (f"[{spec.config.section}]" if spec.config else " - ") in line  # its table
         assert RunConfig().with_overrides({"method": name}).learn.method == name
         assert "scenarios:       ring, ring-random, uniform, explicit" in out
         sensors = next(line for line in out.splitlines() if "sensors:" in line)

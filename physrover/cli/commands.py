@@ -86,15 +86,21 @@ def cmd_info(args: argparse.Namespace) -> int:
 def cmd_methods(args: argparse.Namespace) -> int:
     width = max(len(name) for name in FITNESS_METHODS)
     sections = max(len(spec.section) for _, spec in FITNESS_METHODS.items())
-    print(f"{'method':{width}}  {'paper':{sections}}  fitness of a policy")
+    tables = {name: f"[{spec.config.section}]" if spec.config else "-"
+              for name, spec in FITNESS_METHODS.items()}  # fmt: skip
+    own = max(len("settings"), *map(len, tables.values()))
+    print(f"{'method':{width}}  {'paper':{sections}}  {'settings':{own}}  fitness of a policy")
     for name, spec in FITNESS_METHODS.items():
-        print(f"{name:{width}}  {spec.section:{sections}}  {spec.summary}")
+        print(f"{name:{width}}  {spec.section:{sections}}  {tables[name]:{own}}  {spec.summary}")
     from physrover.core.registry import TRAINERS
 
     print("\ngradient-based trainers (their table: [NAME]; length: total_episodes):")
     for name, spec in TRAINERS.items():
         print(f"{name:{width}}  {spec.reference:{sections}}  {spec.summary}")
-    print('\nchoose with: physrover train --method NAME  (or [learn] method = "NAME")')
+    print(
+        '\nchoose with: physrover train --method NAME  (or [learn] method = "NAME"); its '
+        "settings: physrover info --set method=NAME"
+    )
     from physrover.core.registry import CREDITS, DYNAMICS, SCENARIOS, SENSORS
 
     print("\nthe other seams (physrover.core.registry; docs/extending.md):")
