@@ -27,6 +27,23 @@ DOCS = ROOT / "docs"
 PAGES = sorted(p for p in DOCS.rglob("*.md") if "assets" not in p.relative_to(DOCS).parts)
 
 
+@pytest.fixture(autouse=True)
+def _registries_as_they_were():
+    """A page's examples register parts of their own (a credit, a fitness method, a
+    trainer); they are unregistered after its test, so that a test listing a registry (the
+    plots' colour per method) sees the same names whichever worker ran the page first."""
+    from physrover.core import registry
+
+    saved = [(r, dict(r._entries), set(r._aliases)) for r in vars(registry).values()
+             if isinstance(r, registry.Registry)]  # fmt: skip
+    yield
+    for r, entries, aliases in saved:
+        r._entries.clear()
+        r._entries.update(entries)
+        r._aliases.clear()
+        r._aliases.update(aliases)
+
+
 def _blocks(page: Path, language: str) -> list[str]:
     return re.findall(rf"^```{language}\n(.*?)^```", page.read_text(), re.S | re.M)
 
