@@ -54,14 +54,20 @@ def settings_tables() -> dict[str, list[str]]:
     return tables
 
 
-def _owners(field: str) -> str:
-    """``[critic] (mean-critic, max-critic, ...)``: the fitness methods' tables with ``field``."""
-    found = {}
+def _tables_with(field: str) -> dict[str, tuple[type, list[str]]]:
+    """``{section: (settings class, [methods])}``: the fitness methods' tables with ``field``."""
+    found: dict[str, tuple[type, list[str]]] = {}
     for name, spec in FITNESS_METHODS.items():
         cls = getattr(spec, "config", None)
         if cls is not None and field in cls.field_names():
-            found.setdefault(cls.section, []).append(name)
-    return "; ".join(f"[{section}] ({', '.join(names)})" for section, names in found.items())
+            found.setdefault(cls.section, (cls, []))[1].append(name)
+    return found
+
+
+def _owners(field: str) -> str:
+    """``[critic] (mean-critic, max-critic, ...)``: the fitness methods' tables with ``field``."""
+    return "; ".join(f"[{section}] ({', '.join(names)})"
+                     for section, (_, names) in _tables_with(field).items())  # fmt: skip
 
 
 @dataclasses.dataclass(frozen=True)
@@ -286,8 +292,7 @@ def _move_from_learn(moved: dict[str, Any], table: dict[str, Any], own: type | N
         table[name] = moved[name]
     changed, ignored = [], []
     for name, value in moved.items():
-        owner = next(spec.config for _, spec in FITNESS_METHODS.items()
-                     if name in getattr(spec.config, "field_names", tuple)())  # fmt: skip
+        owner = next(iter(_tables_with(name).values()))[0]
         if value != getattr(owner(), name):
             (changed if name in into else ignored).append(name)
     notes = []
