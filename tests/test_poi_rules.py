@@ -149,6 +149,19 @@ def test_each_poi_has_its_own_capture_radius():
     assert _scored(pois, [[(2.5, 0.0)]], [(0.0, 0.0), (6.0, 0.0)]).G[0] == 3.0  # on the edge
 
 
+def _random_episode(rng, seed, teams, half_size, **domain):
+    """A world of ``teams`` teams of ``domain`` on a uniform layout of ``half_size``, each
+    team reset from its own generator ``[seed, e]``, played to its last step under random
+    commands drawn from ``rng``."""
+    config = DomainConfig(scenario={"kind": "uniform", "half_size": half_size,
+                                    "min_separation": 1.0}, **domain)  # fmt: skip
+    world = RoverWorld(config, teams)
+    world.reset([np.random.default_rng([seed, e]) for e in range(teams)])
+    for _ in range(config.steps):
+        world.step(rng.uniform(-1, 1, (teams, config.n_rovers, 2)))
+    return world
+
+
 def _lab_captured(dist, agent_radius, capture_radius, poi_radius):
     """The lab's rule as it is written (AADILab/influence-shaping, ``custom_env.py``,
     ``AbstractRoverConstraint.captured``; ``capture_radius`` -1: the POI has none)."""
@@ -201,12 +214,8 @@ def test_random_episodes_capture_as_the_labs_rule(seed):
                      "capture_by": by, "sense_radius": float(rng.choice([np.inf, 2.5, 4.0])),
                      "capture_radius": radius})  # fmt: skip
     agents = [dict(SIGHTED[0], count=3), dict(SIGHTED[1], count=2, captures=True)]
-    config = DomainConfig(steps=20, pois=pois, agents=agents, scenario={
-        "kind": "uniform", "half_size": 6.0, "min_separation": 1.0})  # fmt: skip
-    world = RoverWorld(config, 3)
-    world.reset([np.random.default_rng([seed, e]) for e in range(3)])
-    for _ in range(config.steps):
-        world.step(rng.uniform(-1, 1, (3, 5, 2)))
+    world = _random_episode(rng, seed, 3, 6.0, steps=20, pois=pois, agents=agents)
+    config = world.config
     sensing = [3.0] * 3 + [6.0] * 2
     lab_radius = [-1.0 if p["capture_by"] == "sight" else p["capture_radius"] for p in pois]
     captures = 0
@@ -303,12 +312,8 @@ def test_random_episodes_value_pois_as_the_labs_code(seed):
                      "capture_radius": 0.0 if by == "sight" else float(rng.choice([3.0, 6.0])),
                      "sense_radius": float(rng.choice([np.inf, 4.0]))})  # fmt: skip
     agents = [dict(SIGHTED[0], count=4), dict(SIGHTED[1], count=2, captures=False)]
-    config = DomainConfig(steps=15, pois=pois, agents=agents, scenario={
-        "kind": "uniform", "half_size": 5.0, "min_separation": 1.0})  # fmt: skip
-    world = RoverWorld(config, 3)
-    world.reset([np.random.default_rng([seed, e]) for e in range(3)])
-    for _ in range(config.steps):
-        world.step(rng.uniform(-1, 1, (3, 6, 2)))
+    world = _random_episode(rng, seed, 3, 5.0, steps=15, pois=pois, agents=agents)
+    config = world.config
     sensing, counting = [3.0] * 4 + [6.0] * 2, [True] * 4 + [False] * 2
     valued = 0
     for e in range(3):
@@ -355,13 +360,9 @@ def test_random_episodes_score_as_the_oracle(seed, motion):
     for k in range(n_pois):  # a rule may not wait for a final POI
         pois[k]["after"] = [j for j in pois[k]["after"] if pois[j]["score_at"] == "any"]
     scored_states = ["all", "before-steps"][seed % 2]
-    config = DomainConfig(n_rovers=n_rovers, steps=25, pois=pois, motion=motion,
-                          scored_states=scored_states, scenario={"kind": "uniform",
-                          "half_size": 6.0, "min_separation": 1.0})  # fmt: skip
-    world = RoverWorld(config, 4)
-    world.reset([np.random.default_rng([seed, e]) for e in range(4)])
-    for _ in range(config.steps):
-        world.step(rng.uniform(-1, 1, (4, n_rovers, 2)))
+    world = _random_episode(rng, seed, 4, 6.0, n_rovers=n_rovers, steps=25, pois=pois,
+                            motion=motion, scored_states=scored_states)  # fmt: skip
+    config = world.config
     radius = [p["capture_radius"] or config.d_cap for p in pois]
     after = [p["after"] for p in pois]
     final = [p["score_at"] == "final" for p in pois]

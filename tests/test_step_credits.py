@@ -157,5 +157,5 @@ def test_the_episode_target_is_unchanged_and_the_options_are_checked():
         _step_config(method="mean-critic")
     with pytest.raises(ConfigError, match="critic_target: per-step targets need POIs"):
         RunConfig.from_toml(
-            '[learn]\ncritic_target = "step"\n[[pois]]\nvalue = 1.0\n[[pois]]\nvalue = 2.0\n'
+            '[critic]\ncritic_target = "step"\n[[pois]]\nvalue = 1.0\n[[pois]]\nvalue = 2.0\n'
             'after = [0]\n')  # fmt: skip
