@@ -26,6 +26,7 @@ import pytest
 from conftest import comparable_rows
 
 from physrover.experiment import on_ray
+from physrover.experiment.claims import holder
 from physrover.experiment.execute import run_sweep
 from physrover.experiment.store import read_metrics
 from physrover.experiment.sweep import Sweep
@@ -301,9 +302,13 @@ def test_a_two_node_cluster_gives_the_pools_results_and_survives_a_node_dying(cl
     deadline = time.monotonic() + 120
     while True:
         assert process.poll() is None and time.monotonic() < deadline, "no run to interrupt"
-        training = any("run_one" in c for c in _run_names(cluster.worker_pids()))
-        checkpointed = len(list(runs.glob("*/state.json"))) if runs.exists() else 0
-        if training and checkpointed >= 2:  # both nodes' runs have a checkpoint
+        # The run the worker node trains now (its claim's holder is one of the worker's
+        # processes) has a checkpoint. Counting two checkpoints let a run the head had
+        # finished stand in for it; the worker's run then started again from 0 (a CI flake).
+        on_worker = {str(pid) for pid in cluster.worker_pids()}
+        held = [path for path in runs.glob("*/state.json")
+                if str((holder(path.parent) or {}).get("pid")) in on_worker]  # fmt: skip
+        if held:
             break
         time.sleep(0.05)
     # What this test started outside its namespaces keeps to loopback meanwhile.
