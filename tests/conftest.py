@@ -76,3 +76,19 @@ def score_paths(world, paths, record=False) -> None:
         if record:
             world.position_history[t, 0] = positions
         score(world.state, world.config.d_cap, step.n_req, t, step.rules, step.counted)
+
+
+def random_episode(rng, seed, teams, half_size, **domain):
+    """A world of ``teams`` teams of ``domain`` on a uniform layout of ``half_size``, each
+    team reset from its own generator ``[seed, e]``, played to its last step under random
+    commands drawn from ``rng``."""
+    from physrover.config import DomainConfig
+    from physrover.domain.world import RoverWorld
+
+    config = DomainConfig(scenario={"kind": "uniform", "half_size": half_size,
+                                    "min_separation": 1.0}, **domain)  # fmt: skip
+    world = RoverWorld(config, teams)
+    world.reset([np.random.default_rng([seed, e]) for e in range(teams)])
+    for _ in range(config.steps):
+        world.step(rng.uniform(-1, 1, (teams, config.n_rovers, 2)))
+    return world

@@ -577,8 +577,9 @@ def classes_step(positions, headings, actions, classes, names):
 
 
 def indirect_difference_loops(positions, score_args, influence_radius, counted, timescale,
-                              **typed):  # fmt: skip
-    """ID (``timescale`` "trajectory") or ID-step ("step") of one team's agents by plain
+                              rule="all-or-nothing", **typed):  # fmt: skip
+    """ID (``timescale`` "trajectory") or ID-step ("step", who owns a step by ``rule``:
+    "all-or-nothing", "local", "system", "difference") of one team's agents by plain
     loops: influence from the (T + 1, R, 2) ``positions`` at the scored steps, then each
     agent's removal set rescored with :func:`score_rules_loops` (``score_args``: its
     arguments after ``positions``)."""
@@ -605,12 +606,104 @@ def indirect_difference_loops(positions, score_args, influence_radius, counted, 
             else:
                 for t in steps:
                     near = [u for u in range(n) if influences(t, u, k)]
-                    if near and near[0] == a:
+                    owns = {
+                        "all-or-nothing": near[:1] == [a],
+                        "local": a in near,
+                        "system": bool(near),
+                        "difference": near == [a],
+                    }[rule]
+                    if owns:
                         removed.add((t, k))
         G_without = score_rules_loops(positions, *score_args, removed=removed, counted=counted,
                                       **typed)  # fmt: skip
         credit.append(G - G_without[0])
     return credit
+
+
+# -- the lab's code as it is written (AADILab/influence-shaping 8a71aa8) -------------------
+
+
+def lab_captured(dist, agent_radius, capture_radius, poi_radius):
+    """The lab's rule as it is written (AADILab/influence-shaping, ``custom_env.py``,
+    ``AbstractRoverConstraint.captured``; ``capture_radius`` -1: the POI has none)."""
+    if capture_radius != -1.0 and dist <= capture_radius:
+        return True
+    elif dist <= agent_radius and dist <= poi_radius:
+        return True
+    else:
+        return False
+
+
+def lab_step_value(positions, poi, counting, in_reach, coupling, removed=-1):
+    """The lab's distance value of one POI at one step, as it is written
+    (AADILab/influence-shaping ``custom_env.py``, ``AbstractRoverConstraint.
+    _step_is_satisfied``): ``positions`` (R, 2) of the step, ``counting`` the agents of its
+    type ("rover"), ``in_reach(i, dist)`` its ``captured``; agent ``removed`` (or a set of
+    agents) is the lab's counterfactually removed one (physrover's rule, an infinite
+    distance, where the lab's moves it to [-1, -1])."""
+    count = 0
+    dists = []
+    constraint_satisfied = False
+    for i, position in enumerate(positions):
+        if counting[i]:
+            gone = i in removed if isinstance(removed, (set, frozenset)) else i == removed
+            if gone:
+                dist = np.inf
+            else:
+                dist = np.linalg.norm([position[0] - poi[0], position[1] - poi[1]])
+            dists.append(dist)
+            if not gone and in_reach(i, dist):
+                count += 1
+                if count >= coupling:
+                    constraint_satisfied = True
+    if constraint_satisfied:
+        dists.sort()
+        dists = [max(1.0, dist) for dist in dists]
+        constraint_value = float(coupling)
+        for dist in dists[:coupling]:
+            constraint_value = constraint_value * 1.0 / dist
+        return constraint_value
+    return 0.0
+
+
+def lab_influence_sets(complete, i, timescale, credit):
+    """The (t, k) that the lab leaves out (besides agent ``i``'s own trajectory) for agent
+    ``i``'s IndirectDifference, from its ``complete_influence_array`` ``complete[t][u][k]``
+    (0/1), as ``RewardComputer`` writes it (``computer.hpp``: ``prep_all_or_nothing_influence``
+    for the trajectory, ``create_{local,allornothing,system,difference}_influence_array``
+    for steps). One change, physrover's rule: AllOrNothing credits nobody where nobody
+    influences k (the lab's ``highest_influence = -1`` credits agent 0)."""
+    n_steps, n = len(complete), len(complete[0])
+    if timescale == "trajectory":
+        counters = [[sum(complete[t][u][k] for t in range(n_steps)) for u in range(n)]
+                    for k in range(n)]  # fmt: skip
+        owned = []
+        for k in range(n):
+            highest_ind, num_influence = -1, 0
+            for u in range(n):
+                if counters[k][u] > num_influence:
+                    num_influence, highest_ind = counters[k][u], u
+            if highest_ind == i:
+                owned.append(k)
+        return {(t, k) for t in range(n_steps) for k in owned}
+    removed = set()
+    for t in range(n_steps):
+        for k in range(n):
+            if credit == "Local":
+                hit = complete[t][i][k] == 1
+            elif credit == "AllOrNothing":
+                i_credit, highest_influence = -1, 0  # the lab: -1
+                for u in range(n):
+                    if complete[t][u][k] > highest_influence:
+                        i_credit, highest_influence = u, complete[t][u][k]
+                hit = i_credit == i
+            else:
+                system = any(complete[t][u][k] == 1 for u in range(n))
+                without_i = any(complete[t][u][k] == 1 for u in range(n) if u != i)
+                hit = system if credit == "System" else (system and not without_i)
+            if hit:
+                removed.add((t, k))
+    return removed
 
 
 def coupled_score_loops(world, e, steps, extra_rover=-1, copies=1, removed=-1) -> float:

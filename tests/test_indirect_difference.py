@@ -3,8 +3,8 @@ episodes, and D where nobody influences anyone."""
 
 import numpy as np
 import pytest
-from conftest import score_paths
-from oracles import indirect_difference_loops
+from conftest import random_episode, score_paths
+from oracles import indirect_difference_loops, lab_captured, lab_influence_sets, lab_step_value
 
 from physrover.config import DomainConfig, LearnConfig
 from physrover.domain.scoring.credit import CREDITS
@@ -24,6 +24,11 @@ captures = false
 action = "world"
 influence_radius = 5.0
 """
+
+
+CREDIT_RULES = {"ID": ("trajectory", "all-or-nothing"), "ID-step": ("step", "all-or-nothing"),
+                "ID-step-local": ("step", "local"), "ID-step-system": ("step", "system"),
+                "ID-step-difference": ("step", "difference")}  # fmt: skip
 
 
 def _episode(paths, pois=((0.0, 0.0),), values=(2.0,)):
@@ -77,7 +82,22 @@ def test_ties_go_to_the_lower_index_and_nobody_near_credits_nobody():
                                "ID-step": [2.0, 0.0, 0.0]}  # fmt: skip
 
 
-def test_without_influencers_both_credits_are_d():
+def test_the_labs_step_credits_share_split_or_pool_a_step():
+    """Both UAVs near the rover at its capture (step 1), UAV 2 alone near it at step 2:
+    AllOrNothing credits the lower index, Local both, Difference neither (nobody is alone
+    at the capture), System every agent (a UAV far from everyone too)."""
+    both = [[FAR, AWAY, AWAY], [AT, (2.0, 0.0), (0.0, 0.0)], [FAR, AWAY, (41.0, 0.0)]]
+    credits = {name: CREDITS[name](_episode(both))[0].tolist()
+               for name in ("ID-step", "ID-step-local", "ID-step-difference")}  # fmt: skip
+    assert credits == {"ID-step": [2.0, 2.0, 0.0], "ID-step-local": [2.0, 2.0, 2.0],
+                       "ID-step-difference": [2.0, 0.0, 0.0]}  # fmt: skip
+    alone = [[FAR, AWAY, AWAY], [AT, (2.0, 0.0), AWAY], [FAR, AWAY, AWAY]]
+    assert CREDITS["ID-step-difference"](_episode(alone))[0].tolist() == [2.0, 2.0, 0.0]
+    assert CREDITS["ID-step-system"](_episode(alone))[0].tolist() == [2.0, 2.0, 2.0]
+    assert CREDITS["ID-step-local"](_episode(alone))[0].tolist() == [2.0, 2.0, 0.0]
+
+
+def test_without_influencers_every_credit_is_d():
     scenario = {"kind": "uniform", "half_size": 6.0, "min_separation": 1.0}
     world = RoverWorld(DomainConfig(n_req=2, n_rovers=6, scenario=scenario), 8)
     world.reset([np.random.default_rng(e) for e in range(8)])
@@ -85,7 +105,7 @@ def test_without_influencers_both_credits_are_d():
     for _ in range(world.config.steps):
         world.step(rng.uniform(-1, 1, (8, 6, 2)))
     assert world.G.max() > 0
-    for name in ("ID", "ID-step"):
+    for name in CREDIT_RULES:
         np.testing.assert_array_equal(CREDITS[name](world), world.D)
 
 
@@ -132,9 +152,10 @@ influence_radius = 3.0
 """
 
 
-@pytest.mark.parametrize("timescale", ["trajectory", "step"])
+@pytest.mark.parametrize("name", list(CREDIT_RULES))
 @pytest.mark.parametrize("seed", range(4))
-def test_random_episodes_credit_as_the_oracle(seed, timescale):
+def test_random_episodes_credit_as_the_oracle(seed, name):
+    timescale, rule = CREDIT_RULES[name]
     text = MIXED.format(last=["any", "final"][seed % 2])
     if seed >= 2:
         text = text.replace("steps = 30", 'steps = 30\nscored_states = "before-steps"')
@@ -144,7 +165,7 @@ def test_random_episodes_credit_as_the_oracle(seed, timescale):
     rng = np.random.default_rng(seed)
     for _ in range(domain.steps):
         world.step(rng.uniform(-1, 1, (8, 6, 2)))
-    credit = CREDITS["ID" if timescale == "trajectory" else "ID-step"](world)
+    credit = CREDITS[name](world)
     pois = domain.pois
     last = domain.steps if domain.scored_states == "all" else domain.steps - 1
     influence, counted = [0.0] * 4 + [3.0] * 2, [True] * 4 + [False] * 2
@@ -154,13 +175,72 @@ def test_random_episodes_credit_as_the_oracle(seed, timescale):
                       [domain.d_cap] * 4, domain.n_req_per_poi, [list(p.after) for p in pois],
                       [p.score_at == "final" for p in pois], list(range(last + 1)))  # fmt: skip
         expected = indirect_difference_loops(world.position_history[:, e].tolist(),
-                                             score_args, influence, counted, timescale,
+                                             score_args, influence, counted, timescale, rule,
                                              require=[{}, {0: 1, 1: 1}, {}, {}],
                                              classes=[0] * 4 + [1] * 2)  # fmt: skip
         assert credit[e].tolist() == expected
         differs += int((credit[e] != world.D[e]).any())
-    assert world.G.max() > 0 and differs > 0  # the UAVs earned something D does not give
+    assert world.G.max() > 0
+    assert differs > 0 or rule == "difference"  # the UAVs earned something D does not give
     assert world.state.captured[:, 1].any()  # the typed POI (a rover and a UAV) was captured
+
+
+LAB_CREDITS = {"ID": ("trajectory", ""), "ID-step": ("timestep", "AllOrNothing"),
+               "ID-step-local": ("timestep", "Local"), "ID-step-system": ("timestep", "System"),
+               "ID-step-difference": ("timestep", "Difference")}  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_distance_valued_pois_credit_as_the_labs_code(seed):
+    """POIs valued by distance (the lab's only kind), "any" (its sequential) or "final",
+    captured by radius or by sight, hidden from rovers or not, four rovers and two UAVs of
+    influence radius 5 (the lab's): every credit equals the lab's code written as it is
+    (``computer.hpp``'s influence arrays, ``custom_env.py``'s values; the one change in
+    :func:`lab_influence_sets`), a removed agent left out, to 1e-12."""
+    rng = np.random.default_rng(seed)
+    pois = []
+    for _ in range(4):
+        by = str(rng.choice(["radius", "sight"]))
+        hidden = ["uav"] if rng.integers(2) else []
+        pois.append({"value": float(rng.integers(1, 4)), "n_req": int(rng.integers(1, 3)),
+                     "value_by": "distance", "capture_by": by, "visible_to": hidden,
+                     "score_at": str(rng.choice(["any", "final"])),
+                     "capture_radius": 0.0 if by == "sight" else 3.0})  # fmt: skip
+    agents = [{"name": "rover", "count": 4, "sensor": {"kind": "lidar", "radius": 3.0}},
+              {"name": "uav", "count": 2, "captures": False, "influence_radius": 5.0,
+               "sensor": {"kind": "lidar", "radius": 6.0}}]  # fmt: skip
+    world = random_episode(rng, seed, 4, 5.0, steps=12, pois=pois, agents=agents)
+    steps = world.config.steps
+    counting, sensing = [True] * 4 + [False] * 2, [3.0] * 4 + [6.0] * 2
+    credits = {name: CREDITS[name](world) for name in LAB_CREDITS}
+    seen = set()
+    for e in range(4):
+        path = world.position_history[:, e]
+
+        def G(removed=frozenset(), e=e, path=path):
+            total = 0.0
+            for k, p in enumerate(pois):
+                radius = -1.0 if p["capture_by"] == "sight" else p["capture_radius"]
+                reach = lambda i, d, r=radius: lab_captured(d, sensing[i], r, np.inf)  # noqa: E731
+                times = [steps] if p["score_at"] == "final" else range(steps + 1)
+                total += p["value"] * max(
+                    lab_step_value(path[t], world.poi_positions[e, k], counting, reach,
+                                   p["n_req"], {i for (s, i) in removed if s == t})
+                    for t in times
+                )  # fmt: skip
+            return total
+
+        complete = [[[int(u >= 4 and k < 4 and np.linalg.norm(path[t, u] - path[t, k]) <= 5.0)
+                      for k in range(6)] for u in range(6)] for t in range(steps + 1)]  # fmt: skip
+        for name, (timescale, credit) in LAB_CREDITS.items():
+            for i in range(6):
+                removed = lab_influence_sets(complete, i, timescale, credit)
+                removed |= {(t, i) for t in range(steps + 1)}
+                expected = G() - G(frozenset(removed))
+                assert credits[name][e, i] == pytest.approx(expected, rel=1e-12, abs=1e-12)
+                seen.add((name, expected != G() - G(frozenset((t, i) for t in range(steps + 1)))))
+    assert world.G.max() > 0
+    assert all((name, True) in seen for name in LAB_CREDITS)  # each credit differed from D
 
 
 def test_the_credits_are_feedback_names():

@@ -4,8 +4,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import play_alike, score_paths
-from oracles import score_rules_loops
+from conftest import play_alike, random_episode, score_paths
+from oracles import lab_captured, lab_step_value, score_rules_loops
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
 from physrover.domain.scoring.credit import CREDITS
@@ -149,30 +149,6 @@ def test_each_poi_has_its_own_capture_radius():
     assert _scored(pois, [[(2.5, 0.0)]], [(0.0, 0.0), (6.0, 0.0)]).G[0] == 3.0  # on the edge
 
 
-def _random_episode(rng, seed, teams, half_size, **domain):
-    """A world of ``teams`` teams of ``domain`` on a uniform layout of ``half_size``, each
-    team reset from its own generator ``[seed, e]``, played to its last step under random
-    commands drawn from ``rng``."""
-    config = DomainConfig(scenario={"kind": "uniform", "half_size": half_size,
-                                    "min_separation": 1.0}, **domain)  # fmt: skip
-    world = RoverWorld(config, teams)
-    world.reset([np.random.default_rng([seed, e]) for e in range(teams)])
-    for _ in range(config.steps):
-        world.step(rng.uniform(-1, 1, (teams, config.n_rovers, 2)))
-    return world
-
-
-def _lab_captured(dist, agent_radius, capture_radius, poi_radius):
-    """The lab's rule as it is written (AADILab/influence-shaping, ``custom_env.py``,
-    ``AbstractRoverConstraint.captured``; ``capture_radius`` -1: the POI has none)."""
-    if capture_radius != -1.0 and dist <= capture_radius:
-        return True
-    elif dist <= agent_radius and dist <= poi_radius:
-        return True
-    else:
-        return False
-
-
 SIGHTED = [{"name": "rover", "count": 1, "sensor": {"kind": "lidar", "radius": 3.0}},
            {"name": "uav", "count": 1, "sensor": {"kind": "lidar", "radius": 6.0}}]  # fmt: skip
 
@@ -214,7 +190,7 @@ def test_random_episodes_capture_as_the_labs_rule(seed):
                      "capture_by": by, "sense_radius": float(rng.choice([np.inf, 2.5, 4.0])),
                      "capture_radius": radius})  # fmt: skip
     agents = [dict(SIGHTED[0], count=3), dict(SIGHTED[1], count=2, captures=True)]
-    world = _random_episode(rng, seed, 3, 6.0, steps=20, pois=pois, agents=agents)
+    world = random_episode(rng, seed, 3, 6.0, steps=20, pois=pois, agents=agents)
     config = world.config
     sensing = [3.0] * 3 + [6.0] * 2
     lab_radius = [-1.0 if p["capture_by"] == "sight" else p["capture_radius"] for p in pois]
@@ -228,7 +204,7 @@ def test_random_episodes_capture_as_the_labs_rule(seed):
                     if p["capture_by"] == "radius":
                         expected = d <= p["capture_radius"]
                     else:
-                        expected = _lab_captured(d, sensing[i], lab_radius[k], p["sense_radius"])
+                        expected = lab_captured(d, sensing[i], lab_radius[k], p["sense_radius"])
                     assert world.state.in_range[t, e, i, k] == expected, (t, i, k, d)
         radius = [[p["capture_radius"] if p["capture_by"] == "radius"
                    else max(lab_radius[k], min(a, p["sense_radius"])) for a in sensing]
@@ -242,36 +218,6 @@ def test_random_episodes_capture_as_the_labs_rule(seed):
             assert world.D[e, i] == G - score_rules_loops(*args, removed=i)[0]
         captures += sum(f >= 0 for f in first)
     assert captures > 0
-
-
-def _lab_step_value(positions, poi, counting, in_reach, coupling, removed=-1):
-    """The lab's distance value of one POI at one step, as it is written
-    (AADILab/influence-shaping ``custom_env.py``, ``AbstractRoverConstraint.
-    _step_is_satisfied``): ``positions`` (R, 2) of the step, ``counting`` the agents of its
-    type ("rover"), ``in_reach(i, dist)`` its ``captured``; agent ``removed`` is the lab's
-    counterfactually removed one (at [-1, -1]: an infinite distance)."""
-    count = 0
-    dists = []
-    constraint_satisfied = False
-    for i, position in enumerate(positions):
-        if counting[i]:
-            if i == removed:
-                dist = np.inf
-            else:
-                dist = np.linalg.norm([position[0] - poi[0], position[1] - poi[1]])
-            dists.append(dist)
-            if i != removed and in_reach(i, dist):
-                count += 1
-                if count >= coupling:
-                    constraint_satisfied = True
-    if constraint_satisfied:
-        dists.sort()
-        dists = [max(1.0, dist) for dist in dists]
-        constraint_value = float(coupling)
-        for dist in dists[:coupling]:
-            constraint_value = constraint_value * 1.0 / dist
-        return constraint_value
-    return 0.0
 
 
 def test_a_distance_valued_poi_is_worth_its_nearest_agents_distances():
@@ -292,8 +238,8 @@ def test_a_distance_valued_poi_is_worth_its_nearest_agents_distances():
     for field, value in (("after", [0]), ("require", {"rover": 1})):
         with pytest.raises(ConfigError, match=f'{field}: is not defined for value_by = "dis'):
             DomainConfig(pois=[{}, {"value_by": "distance", field: value}])
-    with pytest.raises(ConfigError, match="ID and ID-step are not defined yet"):
-        RunConfig.from_dict({"learn": {"feedback": "ID"}, "pois": [poi] * 4})
+    for name in ("ID", "ID-step", "ID-step-system"):  # they replay distance values
+        RunConfig.from_dict({"learn": {"feedback": name}, "pois": [poi] * 4})
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -312,7 +258,7 @@ def test_random_episodes_value_pois_as_the_labs_code(seed):
                      "capture_radius": 0.0 if by == "sight" else float(rng.choice([3.0, 6.0])),
                      "sense_radius": float(rng.choice([np.inf, 4.0]))})  # fmt: skip
     agents = [dict(SIGHTED[0], count=4), dict(SIGHTED[1], count=2, captures=False)]
-    world = _random_episode(rng, seed, 3, 5.0, steps=15, pois=pois, agents=agents)
+    world = random_episode(rng, seed, 3, 5.0, steps=15, pois=pois, agents=agents)
     config = world.config
     sensing, counting = [3.0] * 4 + [6.0] * 2, [True] * 4 + [False] * 2
     valued = 0
@@ -325,11 +271,11 @@ def test_random_episodes_value_pois_as_the_labs_code(seed):
                 if p["capture_by"] == "radius":
                     reach = lambda agent, d, p=p: d <= p["capture_radius"]  # noqa: E731
                 else:
-                    reach = lambda agent, d, p=p, r=lab_radius: _lab_captured(  # noqa: E731
+                    reach = lambda agent, d, p=p, r=lab_radius: lab_captured(  # noqa: E731
                         d, sensing[agent], r, p["sense_radius"]
                     )
                 steps = [config.steps] if p["score_at"] == "final" else range(config.steps + 1)
-                values = [_lab_step_value(world.position_history[t, e], world.poi_positions[e, k],
+                values = [lab_step_value(world.position_history[t, e], world.poi_positions[e, k],
                                           counting, reach, p["n_req"], removed)
                           for t in steps]  # fmt: skip
                 total += p["value"] * max(values)
@@ -360,7 +306,7 @@ def test_random_episodes_score_as_the_oracle(seed, motion):
     for k in range(n_pois):  # a rule may not wait for a final POI
         pois[k]["after"] = [j for j in pois[k]["after"] if pois[j]["score_at"] == "any"]
     scored_states = ["all", "before-steps"][seed % 2]
-    world = _random_episode(rng, seed, 4, 6.0, n_rovers=n_rovers, steps=25, pois=pois,
+    world = random_episode(rng, seed, 4, 6.0, n_rovers=n_rovers, steps=25, pois=pois,
                             motion=motion, scored_states=scored_states)  # fmt: skip
     config = world.config
     radius = [p["capture_radius"] or config.d_cap for p in pois]

@@ -82,7 +82,7 @@ class AgentClass(ConfigBase):
     """[x_min, x_max, y_min, y_max]: the box its agents are clamped to (ideal motion)."""
     influence_radius: float = 0.0
     """Its agents influence counted agents within this distance, world units, for the
-    IndirectDifference credits ``ID`` and ``ID-step`` (0: nobody; the lab's: 5)."""
+    IndirectDifference credits ``ID`` and ``ID-step*`` (0: nobody; the lab's: 5)."""
     spawn: str = "disc"
     """Where its agents start: "disc" (the scenario's spawn), "fixed" (``spawn_positions``),
     "box" (uniform in ``spawn_box``) or "circle" (uniform on ``spawn_circle``)."""

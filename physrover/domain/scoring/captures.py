@@ -119,25 +119,23 @@ def score_rules(e, k, near, state, rules, n_req, t):
 
 
 @jit_inline
-def distance_value(e, k, state, rules, n, without):
-    """The lab's distance value of POI k of team e at this step (its coupling met):
-    ``n x prod_j 1 / max(1, d_j)`` over the ``n`` smallest distances d_j, world units, of
-    the agents that count for it (in range or not), agent ``without`` left out (-1: none),
-    multiplied nearest first (AADILab/influence-shaping ``custom_env.py``,
-    ``AbstractRoverConstraint._step_is_satisfied``: a stable sort, so ties go by agent
-    index). Selection without a buffer, ``n`` passes over the agents: O(n R)."""
-    positions = state.rover_positions
-    px = state.poi_positions[e, k, 0]
-    py = state.poi_positions[e, k, 1]
+def nearest_value(positions, px, py, counts, n, without):
+    """The lab's distance value of a POI at (``px``, ``py``) whose coupling is met:
+    ``n x prod_j 1 / max(1, d_j)`` over the ``n`` smallest distances d_j, world units, from
+    ``positions`` (R, 2) of the agents i with ``counts[i]`` (in range or not), agent
+    ``without`` left out (-1: none), multiplied nearest first (AADILab/influence-shaping
+    ``custom_env.py``, ``AbstractRoverConstraint._step_is_satisfied``: a stable sort, so ties
+    go by agent index); 0 if fewer than ``n`` agents count. Selection without a buffer, ``n``
+    passes over the agents: O(n R)."""
     value = float(n)
     last_d, last_i = -1.0, -1
     for _ in range(n):
         best_d, best_i = np.inf, -1
-        for i in range(positions.shape[1]):
-            if i == without or not rules.counts_for[k, i]:
+        for i in range(positions.shape[0]):
+            if i == without or not counts[i]:
                 continue
-            dx = positions[e, i, 0] - px
-            dy = positions[e, i, 1] - py
+            dx = positions[i, 0] - px
+            dy = positions[i, 1] - py
             d = np.sqrt(dx * dx + dy * dy)
             after_last = d > last_d or (d == last_d and i > last_i)
             if after_last and (d < best_d or (d == best_d and best_i < 0)):
@@ -147,6 +145,14 @@ def distance_value(e, k, state, rules, n, without):
         value = value * 1.0 / max(1.0, best_d)
         last_d, last_i = best_d, best_i
     return value
+
+
+@jit_inline
+def distance_value(e, k, state, rules, n, without):
+    """:func:`nearest_value` of POI k of team e at this step, over the agents that count
+    for it (``rules.counts_for[k]``), agent ``without`` left out (-1: none)."""
+    return nearest_value(state.rover_positions[e], state.poi_positions[e, k, 0],
+                         state.poi_positions[e, k, 1], rules.counts_for[k], n, without)  # fmt: skip
 
 
 @jit_inline
@@ -207,5 +213,6 @@ def score(state, d_cap, n_req, t, rules=None, counted=None):
         score_team(e, state, d_cap * d_cap, n_req, t, rules, counted)
 
 
-__all__ = ["coupling_met", "distance_value", "last_scored_step", "predecessors_before", "score",
-           "score_by_distance", "score_rules", "score_team"]  # fmt: skip
+__all__ = ["coupling_met", "distance_value", "last_scored_step", "nearest_value",
+           "predecessors_before", "score", "score_by_distance", "score_rules",
+           "score_team"]  # fmt: skip

@@ -12,8 +12,10 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
   would have completed a coupling with partners;
 - ``"D-partial"``: D where the team captured, else each rover's difference to how near
   the team came to its couplings (an exploration credit, beyond the paper);
-- ``"ID"``, ``"ID-step"``: IndirectDifference (:mod:`physrover.domain.scoring.influence`),
-  which credits an agent (a UAV) with the captures of the agents it was near.
+- ``"ID"``, ``"ID-step"``, ``"ID-step-local"``, ``"ID-step-system"``,
+  ``"ID-step-difference"``: IndirectDifference
+  (:mod:`physrover.domain.scoring.influence`), which credits an agent (a UAV) with the
+  captures of the agents it was near.
 
 The gradient-based trainers and the PettingZoo env take the same names (``reward``):
 :func:`step_rewards` gives the signal at an episode's last step ("G" stays the team's
@@ -34,7 +36,7 @@ import numpy as np
 from physrover.config import check
 from physrover.core.registry import CREDITS
 from physrover.domain.scoring.difference import d_plus_plus, partial_difference, step_credits
-from physrover.domain.scoring.influence import indirect_difference
+from physrover.domain.scoring.influence import STEP_RULES, indirect_difference
 
 
 class Credit:
@@ -124,19 +126,15 @@ class PartialCoupling(Credit):
 
 class IndirectDifference(Credit):
     """IndirectDifference (:mod:`physrover.domain.scoring.influence`) over a ``timescale``:
-    "trajectory" (``ID``) or "step" (``ID-step``)."""
+    "trajectory" (``ID``) or "step" (``ID-step``), where ``rule`` (one of
+    :data:`~physrover.domain.scoring.influence.STEP_RULES`) says who owns an influenced
+    agent's step."""
 
-    def __init__(self, timescale: str):
-        self.timescale = timescale
+    def __init__(self, timescale: str, rule: str = "all-or-nothing"):
+        self.timescale, self.rule = timescale, rule
 
     def __call__(self, world) -> np.ndarray:
-        return indirect_difference(world, self.timescale)
-
-    def check(self, domain) -> None:
-        """Its counterfactuals replay captures: not defined yet for POIs valued by
-        distance."""
-        check(not any(p.value_by == "distance" for p in domain.pois), "feedback",
-              'ID and ID-step are not defined yet for POIs with value_by = "distance"')  # fmt: skip
+        return indirect_difference(world, self.timescale, self.rule)
 
 
 def step_rewards(name: str, world, last_step: bool, team_reward: np.ndarray) -> np.ndarray:
@@ -167,3 +165,5 @@ register_credit("D++", DPlusPlus())
 register_credit("D-partial", PartialCoupling())
 register_credit("ID", IndirectDifference("trajectory"))
 register_credit("ID-step", IndirectDifference("step"))
+for _rule in STEP_RULES[1:]:
+    register_credit(f"ID-step-{_rule}", IndirectDifference("step", _rule))

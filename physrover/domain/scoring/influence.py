@@ -1,5 +1,6 @@
 """IndirectDifference: credit for the captures an agent enabled (the paper's lab's later
-credit, AADILab/influence-shaping ``IndirectDifference``, ``assignment = automatic``).
+credit, AADILab/influence-shaping ``IndirectDifference``, ``assignment = automatic``;
+``submodules/rovers/.../rewards/computer.hpp``, ``RewardComputer::compute``).
 
 An agent of a class with ``influence_radius`` rho > 0 (``[[agents]]``; the lab's UAVs, rho
 5) *influences* a counted agent k (its class ``captures``) at a scored step t when they are
@@ -7,9 +8,10 @@ within rho of each other:
 
     phi_t(u, k) = [u != k, rho_u > 0, k counted, ||p_u(t) - p_k(t)|| <= rho_u].
 
-``G(z \\ M)`` rescores the episode (Eqs. 11-13, with the POIs' rules) with every (t, i) of
-the removal set M left out of step t's counts. Two credits, each with agent i's own whole
-trajectory removed as in D (Eq. 1):
+``G(z \\ M)`` rescores the episode (Eqs. 11-13, with the POIs' rules, a distance-valued
+POI at its best value over the agents left in) with every (t, i) of the removal set M left
+out of step t. Each credit removes agent i's own whole trajectory as D does (Eq. 1), and
+with it:
 
 - ``"ID"`` (the lab's ``timescale = trajectory``): ``n_{k,u} = sum_t phi_t(u, k)``; k is
   *owned* by the lowest-index u with the largest ``n_{k,u}``, if it is > 0; then
@@ -17,14 +19,26 @@ trajectory removed as in D (Eq. 1):
   agent is credited with the whole trajectories of the agents it influenced most;
 - ``"ID-step"`` (``timescale = timestep``, ``credit = AllOrNothing``): at each step, k is
   owned by the lowest-index u with ``phi_t(u, k)``, if any; ``ID-step_i = G(z) - G(z \\
-  M_i)`` with ``M_i = ({0..T} x {i}) + {(t, k) : owner_t(k) = i}``: credited step by step.
+  M_i)`` with ``M_i = ({0..T} x {i}) + {(t, k) : owner_t(k) = i}``: credited step by step;
+- ``"ID-step-local"`` (``credit = Local``): ``M_i`` takes every (t, k) with
+  ``phi_t(i, k)``, shared by every agent near k at t;
+- ``"ID-step-system"`` (``credit = System``): every (t, k) with ``phi_t(u, k)`` for any u,
+  the same for every agent, so an agent that influences nobody is credited too;
+- ``"ID-step-difference"`` (``credit = Difference``): the (t, k) that i alone influences
+  (``phi_t(i, k)`` and no other u's).
 
-An agent that influences nobody gets D_i exactly, so without influencers both are D.
-Differences from the lab's code, on purpose: the radius is per class (the lab hard-codes
-5.0); where nobody influences k at t nobody is credited (the lab credits agent 0); G is
-physrover's binary capture (Eq. 11), so removing k at a step matters only where that step
-decided a capture. The lab's ``manual`` assignment, ``Local``/``System``/``Difference``
-credits and ``add_G`` are left out.
+An agent that influences nobody gets D_i exactly (but under ``"ID-step-system"``), so
+without influencers all are D. Differences from the lab's code, on purpose:
+
+- the radius is per class (the lab hard-codes 5.0), and any class may influence (the lab's
+  ``type() == "uav"``) any counted class (``"rover"``);
+- under AllOrNothing, where nobody influences k at t nobody is credited (the lab's
+  ``highest_influence = -1`` credits agent 0);
+- a (t, k) removed at a step is left out of step t (the lab moves it to (-1, -1), where it
+  is still counted by a POI whose range reaches that point and, for a POI valued by
+  distance, still among the agents whose distances are sorted).
+
+The lab's ``manual`` assignment and ``add_G`` are left out.
 
 Cost: the influence is (T + 1, E, R, R) booleans in numpy; the rescoring one compiled pass
 over (E, R, T + 1, K, R), like D++.
@@ -36,11 +50,20 @@ import numpy as np
 
 from physrover.core.compiled import jit
 from physrover.domain.agents.classes import counted_agents, per_agent
-from physrover.domain.scoring.captures import coupling_met, last_scored_step, predecessors_before
+from physrover.domain.scoring.captures import (
+    coupling_met,
+    last_scored_step,
+    nearest_value,
+    predecessors_before,
+)
 from physrover.domain.scoring.difference import team_score
 from physrover.domain.scoring.rules import PoiRules
 
 TIMESCALES = ("trajectory", "step")
+
+STEP_RULES = ("all-or-nothing", "local", "system", "difference")
+"""Who is credited with a (t, k) at the ``"step"`` timescale (the lab's ``credit``:
+AllOrNothing, Local, System, Difference; module docstring)."""
 
 
 def influence(world) -> np.ndarray:
@@ -58,9 +81,10 @@ def influence(world) -> np.ndarray:
     return phi
 
 
-def removal_sets(phi: np.ndarray, timescale: str) -> np.ndarray:
+def removal_sets(phi: np.ndarray, timescale: str, rule: str = "all-or-nothing") -> np.ndarray:
     """(E, A, T_s, R) bool: for each credited agent a, the (t, i) left out of G (module
-    docstring), from the (T_s, E, R, R) influence ``phi``."""
+    docstring), from the (T_s, E, R, R) influence ``phi``; ``rule`` (:data:`STEP_RULES`)
+    says who owns a (t, k) at the ``"step"`` timescale."""
     n_steps, n_teams, n, _ = phi.shape
     own = np.eye(n, dtype=bool)[None, :, None, :]  # a's own trajectory: (1, A, 1, R)
     if timescale == "trajectory":
@@ -68,51 +92,94 @@ def removal_sets(phi: np.ndarray, timescale: str) -> np.ndarray:
         owner = np.where(counts.max(axis=1) > 0, counts.argmax(axis=1), -1)  # (E, k)
         owned = owner[:, None, :] == np.arange(n)[None, :, None]  # (E, A, k)
         return np.broadcast_to(own | owned[:, :, None, :], (n_teams, n, n_steps, n))
-    owner = np.where(phi.any(axis=2), phi.argmax(axis=2), -1)  # (T_s, E, k): lowest u
-    owned = owner.transpose(1, 0, 2)[:, None] == np.arange(n)[None, :, None, None]
+    by_agent = phi.transpose(1, 2, 0, 3)  # (E, u, T_s, k): what u influences at t
+    if rule == "local":
+        owned = by_agent
+    elif rule == "system":
+        owned = np.broadcast_to(by_agent.any(axis=1, keepdims=True), by_agent.shape)
+    elif rule == "difference":
+        alone = by_agent.sum(axis=1, keepdims=True) == 1
+        owned = by_agent & alone
+    else:  # all-or-nothing: the lowest-index influencer
+        owner = np.where(phi.any(axis=2), phi.argmax(axis=2), -1)  # (T_s, E, k)
+        owned = owner.transpose(1, 0, 2)[:, None] == np.arange(n)[None, :, None, None]
     return own | owned  # (E, A, T_s, R)
 
 
 @jit
-def replay_captures(in_range, removed, n_req, rules, out):
-    """``out[e, a, k]``: POI k captured in team e's episode with the (t, i) of
-    ``removed[e, a]`` (T_s, R) left out of the counts (Eq. 12 under the POIs' ``rules``, a
-    :class:`~physrover.domain.scoring.rules.PoiRules`: the same :func:`coupling_met` and
-    order as the episode's scoring), from the episode's record ``in_range`` (T + 1, E, R,
-    K)."""
+def replay_captures(in_range, removed, n_req, rules, out, positions=None, poi_positions=None):
+    """``out[e, a, k]``: what POI k is worth (times its value V_k) in team e's episode with
+    the (t, i) of ``removed[e, a]`` (T_s, R) left out of step t: 1.0 if it is captured, else
+    0.0 (Eq. 12 under the POIs' ``rules``, a :class:`~physrover.domain.scoring.rules.PoiRules`:
+    the same :func:`coupling_met` and order as the episode's scoring), or for a POI valued by
+    distance its best (or final) value over the agents left in
+    (:func:`~physrover.domain.scoring.captures.nearest_value`), from the episode's record
+    ``in_range`` (T + 1, E, R, K) and, for valued POIs only, the agents' ``positions``
+    (T + 1, E, R, 2) and ``poi_positions`` (E, K, 2), world units. ``out`` (E, A, K) may be
+    bool, where no POI is valued by distance."""
     n_teams, n_sets, n_steps, n_agents = removed.shape
     n_pois = in_range.shape[3]
     first = np.empty(n_pois, dtype=np.int64)
+    best = np.empty(n_pois)
     near = np.empty((n_agents, n_pois), dtype=np.bool_)
+    left_in = np.empty(n_agents, dtype=np.bool_)
     for e in range(n_teams):
         for a in range(n_sets):
             first[:] = -1
+            best[:] = 0.0
             for t in range(n_steps):
                 for i in range(n_agents):
                     for k in range(n_pois):
                         near[i, k] = in_range[t, e, i, k] and not removed[e, a, t, i]
                 for k in range(n_pois):
-                    if first[k] >= 0 or (rules.final_only[k] and t != rules.t_final):
+                    if rules.final_only[k] and t != rules.t_final:
+                        continue
+                    if rules.valued[k]:
+                        if positions is None:  # compiled away where none is given
+                            continue
+                        if coupling_met(k, near, rules, n_req, -1):
+                            for i in range(n_agents):
+                                left_in[i] = rules.counts_for[k, i] and not removed[e, a, t, i]
+                            value = nearest_value(positions[t, e], poi_positions[e, k, 0],
+                                                  poi_positions[e, k, 1], left_in, n_req[k],
+                                                  -1)  # fmt: skip
+                            best[k] = max(best[k], value)
+                            if value > 0.0 and first[k] < 0:
+                                first[k] = t
+                        continue
+                    if first[k] >= 0:
                         continue
                     if coupling_met(k, near, rules, n_req, -1) and predecessors_before(
                         rules.after, k, first, t
                     ):
                         first[k] = t
             for k in range(n_pois):
-                out[e, a, k] = first[k] >= 0
+                out[e, a, k] = best[k] if rules.valued[k] else first[k] >= 0
 
 
-def indirect_difference(world, timescale: str = "trajectory") -> np.ndarray:
+def indirect_difference(world, timescale: str = "trajectory",
+                        rule: str = "all-or-nothing") -> np.ndarray:  # fmt: skip
     """(E, R) IndirectDifference of every agent for the episode ``world`` just played
-    (``timescale`` "trajectory": ``ID``; "step": ``ID-step``; module docstring)."""
+    (``timescale`` "trajectory": ``ID``; "step": ``ID-step`` under ``rule``, one of
+    :data:`STEP_RULES`; module docstring)."""
     if timescale not in TIMESCALES:
         raise ValueError(f"timescale must be one of {TIMESCALES}, got {timescale!r}")
+    if rule not in STEP_RULES:
+        raise ValueError(f"rule must be one of {STEP_RULES}, got {rule!r}")
     phi = influence(world)
-    removed = removal_sets(phi, timescale)
+    removed = removal_sets(phi, timescale, rule)
     rules = world.plan.step.rules or PoiRules.build(world.config, world.n_teams, always=True)
-    captured = np.empty((world.n_teams, world.n_rovers, world.n_pois), dtype=bool)
-    replay_captures(world.state.in_range, removed, world.n_req, rules, captured)
-    return world.G[:, None] - team_score(captured, world.state.poi_values)
+    worth = np.empty((world.n_teams, world.n_rovers, world.n_pois))
+    replay_captures(world.state.in_range, removed, world.n_req, rules, worth,
+                    world.position_history, world.poi_positions)  # fmt: skip
+    return world.G[:, None] - team_score(worth, world.state.poi_values)
 
 
-__all__ = ["TIMESCALES", "indirect_difference", "influence", "removal_sets", "replay_captures"]
+__all__ = [
+    "STEP_RULES",
+    "TIMESCALES",
+    "indirect_difference",
+    "influence",
+    "removal_sets",
+    "replay_captures",
+]
