@@ -1,16 +1,19 @@
 """IndirectDifference (issue 33): hand-worked credits, a plain-loop oracle on random
 episodes, and D where nobody influences anyone."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import random_episode, score_paths
 from oracles import indirect_difference_loops, lab_captured, lab_influence_sets, lab_step_value
 
-from physrover.config import DomainConfig, LearnConfig
-from physrover.domain.scoring.credit import CREDITS
+from physrover.config import ConfigError, DomainConfig, LearnConfig, RunConfig
+from physrover.domain.scoring.credit import CREDITS, ByClass, team_credit
 from physrover.domain.scoring.influence import replay_captures
 from physrover.domain.scoring.rules import PoiRules
 from physrover.domain.world import RoverWorld, StartOverrides
+from physrover.learn.ccea import CCEA
 
 ROVER_AND_TWO_UAVS = """
 [domain]
@@ -209,12 +212,12 @@ def test_distance_valued_pois_credit_as_the_labs_code(seed):
     agents = [{"name": "rover", "count": 4, "sensor": {"kind": "lidar", "radius": 3.0}},
               {"name": "uav", "count": 2, "captures": False, "influence_radius": 5.0,
                "sensor": {"kind": "lidar", "radius": 6.0}}]  # fmt: skip
-    world = random_episode(rng, seed, 4, 5.0, steps=12, pois=pois, agents=agents)
+    world = random_episode(rng, seed, 8, 5.0, steps=12, pois=pois, agents=agents)
     steps = world.config.steps
     counting, sensing = [True] * 4 + [False] * 2, [3.0] * 4 + [6.0] * 2
     credits = {name: CREDITS[name](world) for name in LAB_CREDITS}
     seen = set()
-    for e in range(4):
+    for e in range(8):
         path = world.position_history[:, e]
 
         def G(removed=frozenset(), e=e, path=path):
@@ -241,6 +244,46 @@ def test_distance_valued_pois_credit_as_the_labs_code(seed):
                 seen.add((name, expected != G() - G(frozenset((t, i) for t in range(steps + 1)))))
     assert world.G.max() > 0
     assert all((name, True) in seen for name in LAB_CREDITS)  # each credit differed from D
+
+
+def test_a_class_takes_its_own_feedback_and_g_on_top():
+    """The lab's per-agent reward_type and add_G: the rover on D (the run's), the UAVs on
+    ID-step plus G; each column is its signal's column of the same episode."""
+    world = _episode([[FAR, AWAY, AWAY], [AT, (3.0, 0.0), AWAY], [FAR, AWAY, AWAY]])
+    uav = {**world.config.agents[1].table(), "feedback": "ID-step", "feedback_plus_G": True}
+    domain = world.config.replace(agents=[world.config.agents[0], uav])
+    credit = team_credit("D", domain)
+    assert isinstance(credit, ByClass)
+    assert credit(world)[0].tolist() == [2.0, 2.0 + 2.0, 0.0 + 2.0]  # D; ID-step + G
+    assert not credit.per_step_defined  # no per-step G on top
+    rover_own = domain.replace(agents=[{**domain.agents[0].table(), "feedback": "G"},
+                                       domain.agents[1]])  # fmt: skip
+    assert team_credit("D", rover_own)(world)[0].tolist() == [2.0, 4.0, 2.0]
+    assert team_credit("ID-step", world.config) is CREDITS["ID-step"]  # nobody differs
+    with pytest.raises(ConfigError, match="agents\\[1\\].feedback: unknown credit signal 'IDs"):
+        domain.replace(agents=[domain.agents[0], {**uav, "feedback": "IDstep"}])
+    rover = domain.agents[0].table()
+    ordered = {"domain": {"n_req": 1}, "pois": [{}, {"after": [0]}],
+               "agents": [rover, {**uav, "feedback": "D++"}]}  # fmt: skip
+    with pytest.raises(ConfigError, match="feedback: D\\+\\+ is not defined for POIs with after"):
+        RunConfig.from_dict(ordered)
+
+
+def test_the_ccea_trains_each_class_on_its_own_feedback():
+    """A rollout's credit is the composed one: the UAVs' columns are ID-step's, the rovers'
+    D's (the run's), for the same teams."""
+    run = RunConfig.from_toml(MIXED.format(last="any") + "[learn]\npopulation = 4\n")
+    classes = [run.domain.agents[0], {**run.domain.agents[1].table(), "feedback": "ID-step"}]
+    ccea = CCEA(dataclasses.replace(run, domain=run.domain.replace(agents=classes)))
+    plain = CCEA(run)
+    n = ccea.n_played + run.learn.eval_episodes
+    index = np.tile(np.arange(n)[:, None] % 4, (1, 6))
+    G, credit = ccea.rollout(index)
+    G_plain, D = plain.rollout(index)
+    np.testing.assert_array_equal(G, G_plain)
+    np.testing.assert_array_equal(credit[:, :4], D[:, :4])
+    np.testing.assert_array_equal(credit[:, 4:], CREDITS["ID-step"](ccea.env.world)[:, 4:])
+    assert (credit[:, 4:] != D[:, 4:]).any()  # a case that tells the two apart
 
 
 def test_the_credits_are_feedback_names():

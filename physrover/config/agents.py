@@ -24,6 +24,9 @@ counts. A class sets:
 - ``influence_radius``: for the IndirectDifference credits
   (:mod:`physrover.domain.scoring.influence`), how near its agents must be to a counted
   agent to be credited with its captures;
+- ``feedback``: its agents' own credit signal (the lab's per-agent ``reward_type``), in
+  place of the run's ``[learn] feedback``, and ``feedback_plus_G``: G added to it (the
+  lab's ``add_G``; :class:`physrover.domain.scoring.credit.ByClass`);
 - ``spawn``: where its agents start, the scenario's ``"disc"``, ``"fixed"`` positions, a
   ``"box"`` or a ``"circle"`` (the lab's spawn rules;
   :func:`physrover.domain.agents.classes.spawn`).
@@ -48,6 +51,7 @@ from physrover.config.base import (
     coerce_tables,
     did_you_mean,
 )
+from physrover.core.registry import CREDITS
 
 ACTIONS = ("body", "world")
 SPAWNS = ("disc", "fixed", "box", "circle")
@@ -83,6 +87,12 @@ class AgentClass(ConfigBase):
     influence_radius: float = 0.0
     """Its agents influence counted agents within this distance, world units, for the
     IndirectDifference credits ``ID`` and ``ID-step*`` (0: nobody; the lab's: 5)."""
+    feedback: str = ""
+    """Its agents' credit signal, a registered name (``physrover parts``; the lab's
+    ``reward_type``: Global "G", Difference "D", IndirectDifference "ID" or "ID-step*");
+    "": the run's ``[learn] feedback``."""
+    feedback_plus_G: bool = False
+    """Add G to its agents' credit (the lab's ``add_G``)."""
     spawn: str = "disc"
     """Where its agents start: "disc" (the scenario's spawn), "fixed" (``spawn_positions``),
     "box" (uniform in ``spawn_box``) or "circle" (uniform on ``spawn_circle``)."""
@@ -107,6 +117,8 @@ class AgentClass(ConfigBase):
               f"must be >= 0 (0: the sensor's radius), got {self.moves_with_radius}")  # fmt: skip
         check(0 <= self.influence_radius < math.inf, "influence_radius",
               f"must be >= 0 (0: none), got {self.influence_radius}")  # fmt: skip
+        check(self.feedback == "" or self.feedback in CREDITS, "feedback",
+              CREDITS.unknown_message(self.feedback, ' or "" (the run\'s)'))  # fmt: skip
         b = self.bounds
         ok = not b or (len(b) == 4 and b[0] < b[1] and b[2] < b[3])
         check(ok, "bounds", f"need [x_min, x_max, y_min, y_max] with min < max, got {list(b)}")

@@ -90,8 +90,9 @@ class RunConfig:
             raise ConfigError("domain", "must be a DomainConfig")
         if not isinstance(self.learn, LearnConfig):
             raise ConfigError("learn", "must be a LearnConfig")
-        credit = CREDITS[self.learn.feedback] if self.learn.feedback in CREDITS else None
-        getattr(credit, "check", lambda domain: None)(self.domain)  # defined for the domain?
+        signals = {self.learn.feedback} | {c.feedback for c in self.domain.agents if c.feedback}
+        for name in sorted(signals & set(CREDITS)):  # defined for the domain?
+            CREDITS[name].check(self.domain)
         self._check_curriculum()
         method = self.learn.method
         cls = settings_class(method)

@@ -19,7 +19,7 @@ from gymnasium import spaces
 from physrover.config import DomainConfig
 from physrover.core.registry import CREDITS
 from physrover.domain.agents.classes import agent_names
-from physrover.domain.scoring.credit import step_rewards
+from physrover.domain.scoring.credit import step_rewards, team_credit
 from physrover.domain.sensing.sensor import agent_obs_sizes
 from physrover.domain.world import StartOverrides
 from physrover.envs.gymnasium_env import RoverEnv, resolve_config
@@ -129,7 +129,7 @@ class RoverParallelEnv(ParallelEnv):
             resolve_config(config, fields), render_mode=render_mode, render_config=render_config
         )
         self.config = self.env.config
-        CREDITS[reward].check(self.config)  # defined for this domain?
+        team_credit(reward, self.config).check(self.config)  # defined for this domain?
         self.render_mode = render_mode
         team_obs = self.env.observation_space  # (R, n_obs), bounds from the sensor
         self.possible_agents = agent_names(self.config)  # CLASS_j with [[agents]]

@@ -39,7 +39,7 @@ import numpy as np
 
 from physrover.config import RunConfig
 from physrover.core.compiled import dims
-from physrover.core.registry import CREDITS
+from physrover.domain.scoring.credit import team_credit
 from physrover.domain.scoring.rules import PoiRules
 from physrover.envs.gymnasium_env import RoverVectorEnv, generator_from_state, team_spaces
 from physrover.learn.classes import team_layout
@@ -96,7 +96,7 @@ class CCEA:
         self.n_elite_teams = 0 if self.team_elites is None else self.team_elites.n
         problem = Problem(self.n_rovers, d.steps, n_obs, n_act)
         self.method = make_method(config, problem, critic_init)
-        self.credit = CREDITS[cfg.feedback]  # each rover's immediate feedback
+        self.credit = team_credit(cfg.feedback, d)  # each agent's immediate feedback
         self.n_train = self.method.rounds * self.k
         self.n_played = self.n_train + self.n_elite_teams  # episodes before the evaluation's
         # a scenario redrawn per generation: the training teams (and elite teams) share one

@@ -24,7 +24,8 @@ import math
 from typing import ClassVar
 
 from physrover.config import OPTIMIZERS, ConfigBase, check, check_choice
-from physrover.core.registry import CREDITS, FITNESS_METHODS
+from physrover.core.registry import FITNESS_METHODS
+from physrover.domain.scoring.credit import team_credit
 
 
 @dataclasses.dataclass(frozen=True)
@@ -137,10 +138,10 @@ class CriticConfig(_CriticNetwork):
         check(FITNESS_METHODS[method].pair_replay, "critic_target",
               "per-step targets need a critic that replays pairs (inexact updates: "
               f"max-critic, mean-critic-inexact), not {method!r}")  # fmt: skip
-        credit = CREDITS[run.learn.feedback]
+        credit = team_credit(run.learn.feedback, run.domain)
         check(getattr(credit, "per_step_defined", False), "critic_target",
-              'per-step targets are defined for feedback "D", "G" and "D++", not '
-              f"{run.learn.feedback!r}")  # fmt: skip
+              'per-step targets are defined for feedback "D", "G" and "D++" (and no class\'s '
+              f"feedback_plus_G), not {run.learn.feedback!r}")  # fmt: skip
         check(
             not any(p.scored_by_rule for p in run.domain.pois),
             "critic_target",

@@ -137,6 +137,57 @@ class IndirectDifference(Credit):
         return indirect_difference(world, self.timescale, self.rule)
 
 
+class ByClass(Credit):
+    """The run's signal ``name`` for every agent but those of a class (``[[agents]]``) that
+    names its own ``feedback`` (the lab's per-agent ``reward_type``), each plus G where its
+    class sets ``feedback_plus_G`` (the lab's ``add_G``). Each signal is computed once per
+    episode for the whole team and its class's columns taken."""
+
+    def __init__(self, name: str, domain):
+        self.name = name
+        self.groups = []  # (signal, agent indices, plus G) per class that differs
+        start = 0
+        for c in domain.agents:
+            agents = np.arange(start, start + c.count)
+            start += c.count
+            if c.feedback not in ("", name) or c.feedback_plus_G:
+                self.groups.append((c.feedback or name, agents, c.feedback_plus_G))
+        self.names = {name} | {signal for signal, _, _ in self.groups}
+        self.per_step_defined = not any(plus for _, _, plus in self.groups) and all(
+            CREDITS[n].per_step_defined for n in self.names
+        )
+
+    def _compose(self, values) -> np.ndarray:
+        out = np.array(values(self.name), dtype=np.float64)
+        for signal, agents, plus in self.groups:
+            if signal != self.name:
+                out[..., agents] = values(signal)[..., agents]
+            if plus:
+                out[..., agents] += values("G")[..., agents]
+        return out
+
+    def __call__(self, world) -> np.ndarray:
+        cache = {}
+        return self._compose(lambda n: cache.setdefault(n, CREDITS[n](world)))
+
+    def per_step(self, world) -> np.ndarray:
+        cache = {}
+        return self._compose(lambda n: cache.setdefault(n, CREDITS[n].per_step(world)))
+
+    def check(self, domain) -> None:
+        for n in sorted(self.names):
+            CREDITS[n].check(domain)
+
+
+def team_credit(name: str, domain) -> Credit:
+    """The credit of a team of ``domain`` (a :class:`~physrover.config.DomainConfig`) under
+    the run's signal ``name``: the registered signal, or :class:`ByClass` where an agent
+    class names its own ``feedback`` or ``feedback_plus_G``."""
+    if not any(c.feedback not in ("", name) or c.feedback_plus_G for c in domain.agents):
+        return CREDITS[name]
+    return ByClass(name, domain)
+
+
 def step_rewards(name: str, world, last_step: bool, team_reward: np.ndarray) -> np.ndarray:
     """Each rover's reward of one step for a per-step learner (MAPPO, MADDPG, the PettingZoo
     env) under the credit signal ``name``: "G" is the team's increase of G at every step
@@ -149,7 +200,7 @@ def step_rewards(name: str, world, last_step: bool, team_reward: np.ndarray) -> 
                          axis=1)  # fmt: skip
     if not last_step:
         return np.zeros((world.n_teams, world.n_rovers))
-    return np.asarray(CREDITS[name](world), dtype=np.float64)
+    return np.asarray(team_credit(name, world.config)(world), dtype=np.float64)
 
 
 def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Credit:
