@@ -34,9 +34,10 @@ CREDIT_RULES = {"ID": ("trajectory", "all-or-nothing"), "ID-step": ("step", "all
                 "ID-step-difference": ("step", "difference")}  # fmt: skip
 
 
-def _episode(paths, pois=((0.0, 0.0),), values=(2.0,)):
-    """The world after hand-made paths (``paths[t]``: every agent's position at step t)."""
-    domain = DomainConfig.from_toml(ROVER_AND_TWO_UAVS).replace(
+def _episode(paths, pois=((0.0, 0.0),), values=(2.0,), domain=None):
+    """The world after hand-made paths (``paths[t]``: every agent's position at step t) of
+    ``domain`` (default: a rover and two UAVs)."""
+    domain = (domain or DomainConfig.from_toml(ROVER_AND_TWO_UAVS)).replace(
         steps=len(paths) - 1, poi_values=values)  # fmt: skip
     world = RoverWorld(domain, 1)
     world.reset([np.random.default_rng(0)], StartOverrides(
@@ -267,6 +268,25 @@ def test_a_class_takes_its_own_feedback_and_g_on_top():
                "agents": [rover, {**uav, "feedback": "D++"}]}  # fmt: skip
     with pytest.raises(ConfigError, match="feedback: D\\+\\+ is not defined for POIs with after"):
         RunConfig.from_dict(ordered)
+
+
+def test_manual_assignment_removes_the_listed_agents_only():
+    """The lab's ``assignment = manual``: G minus G without the listed agents; the agent
+    itself stays unless listed, and a class that lists nobody is credited 0."""
+    world = _episode([[FAR, AWAY, AWAY], [AT, (3.0, 0.0), AWAY], [FAR, AWAY, AWAY]])
+    uav = {**world.config.agents[1].table(), "manual_removal": [0]}
+    domain = world.config.replace(agents=[world.config.agents[0], uav])
+    world = _episode([[FAR, AWAY, AWAY], [AT, (3.0, 0.0), AWAY], [FAR, AWAY, AWAY]],
+                     domain=domain)  # fmt: skip
+    assert CREDITS["ID-manual"](world)[0].tolist() == [0.0, 2.0, 2.0]
+    mixed = domain.replace(agents=[domain.agents[0], {**uav, "feedback": "ID-manual"}])
+    assert team_credit("D", mixed)(world)[0].tolist() == [2.0, 2.0, 2.0]
+    itself = domain.replace(agents=[domain.agents[0], {**uav, "manual_removal": [1, 2]}])
+    world = _episode([[FAR, AWAY, AWAY], [AT, (3.0, 0.0), AWAY], [FAR, AWAY, AWAY]],
+                     domain=itself)  # fmt: skip
+    assert CREDITS["ID-manual"](world)[0].tolist() == [0.0, 0.0, 0.0]  # UAVs never count
+    with pytest.raises(ConfigError, match=r"agents\[1\].manual_removal: agents are 0 .. 2 in a"):
+        domain.replace(agents=[domain.agents[0], {**uav, "manual_removal": [3]}])
 
 
 def test_the_ccea_trains_each_class_on_its_own_feedback():

@@ -27,6 +27,9 @@ counts. A class sets:
 - ``feedback``: its agents' own credit signal (the lab's per-agent ``reward_type``), in
   place of the run's ``[learn] feedback``, and ``feedback_plus_G``: G added to it (the
   lab's ``add_G``; :class:`physrover.domain.scoring.credit.ByClass`);
+- ``manual_removal``: agent indices in the team whose whole trajectories the credit
+  ``"ID-manual"`` leaves out of G for each agent of this class (the lab's IndirectDifference
+  ``assignment = manual``);
 - ``spawn``: where its agents start, the scenario's ``"disc"``, ``"fixed"`` positions, a
   ``"box"`` or a ``"circle"`` (the lab's spawn rules;
   :func:`physrover.domain.agents.classes.spawn`).
@@ -93,6 +96,9 @@ class AgentClass(ConfigBase):
     "": the run's ``[learn] feedback``."""
     feedback_plus_G: bool = False
     """Add G to its agents' credit (the lab's ``add_G``)."""
+    manual_removal: tuple[int, ...] = ()
+    """Agents (indices in the team) whose whole trajectories ``"ID-manual"`` removes for
+    each agent of this class, the agent itself not unless listed (the lab's ``manual``)."""
     spawn: str = "disc"
     """Where its agents start: "disc" (the scenario's spawn), "fixed" (``spawn_positions``),
     "box" (uniform in ``spawn_box``) or "circle" (uniform on ``spawn_circle``)."""
@@ -173,6 +179,9 @@ def check_agents(domain) -> None:
             radius = getattr(agent.sensor or domain.sensor, "radius", math.inf)
             check(math.isfinite(radius), f"agents[{c}].moves_with_radius",
                   "the sensor's radius is inf; give a finite radius")  # fmt: skip
+        bad = [i for i in agent.manual_removal if not 0 <= i < domain.n_rovers]
+        check(not bad, f"agents[{c}].manual_removal",
+              f"agents are 0 .. {domain.n_rovers - 1} in a team, got {bad}")  # fmt: skip
         check(not agent.bounds or domain.motion == "ideal", f"agents[{c}].bounds",
               'bounds need motion = "ideal" (a physical team: [physics] walls)')  # fmt: skip
     typed = any(p.require for p in domain.pois)  # a typed POI counts the classes it names

@@ -13,7 +13,7 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
 - ``"D-partial"``: D where the team captured, else each rover's difference to how near
   the team came to its couplings (an exploration credit, beyond the paper);
 - ``"ID"``, ``"ID-step"``, ``"ID-step-local"``, ``"ID-step-system"``,
-  ``"ID-step-difference"``: IndirectDifference
+  ``"ID-step-difference"``, ``"ID-manual"``: IndirectDifference
   (:mod:`physrover.domain.scoring.influence`), which credits an agent (a UAV) with the
   captures of the agents it was near.
 
@@ -36,7 +36,11 @@ import numpy as np
 from physrover.config import check
 from physrover.core.registry import CREDITS
 from physrover.domain.scoring.difference import d_plus_plus, partial_difference, step_credits
-from physrover.domain.scoring.influence import STEP_RULES, indirect_difference
+from physrover.domain.scoring.influence import (
+    STEP_RULES,
+    indirect_difference,
+    manual_difference,
+)
 
 
 class Credit:
@@ -137,6 +141,15 @@ class IndirectDifference(Credit):
         return indirect_difference(world, self.timescale, self.rule)
 
 
+class ManualIndirectDifference(Credit):
+    """The lab's IndirectDifference with ``assignment = manual``
+    (:func:`physrover.domain.scoring.influence.manual_difference`): G minus G without the
+    agents a class lists in ``manual_removal``."""
+
+    def __call__(self, world) -> np.ndarray:
+        return manual_difference(world)
+
+
 class ByClass(Credit):
     """The run's signal ``name`` for every agent but those of a class (``[[agents]]``) that
     names its own ``feedback`` (the lab's per-agent ``reward_type``), each plus G where its
@@ -218,3 +231,4 @@ register_credit("ID", IndirectDifference("trajectory"))
 register_credit("ID-step", IndirectDifference("step"))
 for _rule in STEP_RULES[1:]:
     register_credit(f"ID-step-{_rule}", IndirectDifference("step", _rule))
+register_credit("ID-manual", ManualIndirectDifference())

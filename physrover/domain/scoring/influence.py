@@ -38,7 +38,8 @@ without influencers all are D. Differences from the lab's code, on purpose:
   is still counted by a POI whose range reaches that point and, for a POI valued by
   distance, still among the agents whose distances are sorted).
 
-The lab's ``manual`` assignment and ``add_G`` are left out.
+The lab's ``manual`` assignment is ``"ID-manual"`` (:func:`manual_difference`), its
+``add_G`` a class's ``feedback_plus_G`` (:class:`~physrover.domain.scoring.credit.ByClass`).
 
 Cost: the influence is (T + 1, E, R, R) booleans in numpy; the rescoring one compiled pass
 over (E, R, T + 1, K, R), like D++.
@@ -167,12 +168,34 @@ def indirect_difference(world, timescale: str = "trajectory",
     if rule not in STEP_RULES:
         raise ValueError(f"rule must be one of {STEP_RULES}, got {rule!r}")
     phi = influence(world)
-    removed = removal_sets(phi, timescale, rule)
+    return world.G[:, None] - rescore(world, removal_sets(phi, timescale, rule))
+
+
+def manual_difference(world) -> np.ndarray:
+    """(E, R) the lab's IndirectDifference with ``assignment = manual``: ``G(z) - G(z \\
+    ({0..T} x L_i))``, ``L_i`` the agents listed in agent i's class's ``manual_removal``
+    (itself only if listed; an agent whose class lists nobody gets 0), for the episode
+    ``world`` just played (``RewardComputer::compute``, ``compute_without_inds``)."""
+    config = world.config
+    listed = np.zeros((world.n_rovers, world.n_rovers), dtype=bool)  # [a, i]
+    start = 0
+    for c in config.agents:
+        listed[start : start + c.count, list(c.manual_removal)] = True
+        start += c.count
+    n_steps = last_scored_step(config) + 1
+    removed = np.broadcast_to(listed[None, :, None, :],
+                              (world.n_teams, world.n_rovers, n_steps, world.n_rovers))  # fmt: skip
+    return world.G[:, None] - rescore(world, np.ascontiguousarray(removed))
+
+
+def rescore(world, removed: np.ndarray) -> np.ndarray:
+    """(E, A) ``G(z \\ M)`` of the episode ``world`` just played for each removal set
+    ``removed`` (E, A, T_s, R) bool (:func:`replay_captures`, then Eq. 11)."""
     rules = world.plan.step.rules or PoiRules.build(world.config, world.n_teams, always=True)
-    worth = np.empty((world.n_teams, world.n_rovers, world.n_pois))
+    worth = np.empty((world.n_teams, removed.shape[1], world.n_pois))
     replay_captures(world.state.in_range, removed, world.n_req, rules, worth,
                     world.position_history, world.poi_positions)  # fmt: skip
-    return world.G[:, None] - team_score(worth, world.state.poi_values)
+    return team_score(worth, world.state.poi_values)
 
 
 __all__ = [
@@ -180,6 +203,8 @@ __all__ = [
     "TIMESCALES",
     "indirect_difference",
     "influence",
+    "manual_difference",
     "removal_sets",
+    "rescore",
     "replay_captures",
 ]
