@@ -12,6 +12,7 @@ from physrover import RoverEnv
 from physrover.config import ConfigError, DomainConfig, LearnConfig, RunConfig
 from physrover.experiment.playback import DIVIDER_PX, record_run
 from physrover.learn.policies import PolicyLayout
+from physrover.viz.classes import ring_pixels
 from physrover.viz.render import (
     BACKGROUND,
     FOOTER_PX,
@@ -20,13 +21,17 @@ from physrover.viz.render import (
     POI_CAPTURED,
     POI_FREE,
     ROVER_PX,
+    TEXT,
     RenderConfig,
     Transform,
     VideoError,
     VideoWriter,
+    poi_status,
     rover_rgb,
     world_state,
 )
+
+TEXT_RGB = np.array(TEXT[::-1])
 
 
 def _view(env, render):
@@ -213,6 +218,50 @@ def test_rover_ids_on_request():
                         render_config=plain.replace(ids=True))  # fmt: skip
     with_ids.reset(seed=1)
     assert not np.array_equal(env.render(), with_ids.render())
+
+
+def test_rover_ids_are_dark_on_a_light_rim_and_legible():
+    """An index is drawn in the text colour at 0.5 scale beside the body's top right (not
+    in the body's colour: a yellow digit on grey could not be read)."""
+    render = RenderConfig(width=320, height=320, ids=True)
+    env = RoverEnv(n_rovers=5, n_req=1, render_mode="rgb_array", render_config=render)
+    spread = [(-8.0, 8.0), (8.0, 8.0), (-8.0, -8.0), (8.0, -8.0), (0.0, 0.0)]
+    env.reset(seed=0, options={"rover_positions": spread, "rover_headings": [np.pi] * 5})
+    frame = env.render()
+    tf = _view(env, render)
+    for i, (x, y) in enumerate(np.round(tf(np.array(spread))).astype(int)):
+        corner = frame[y - ROVER_PX - 16 : y - ROVER_PX, x + ROVER_PX : x + ROVER_PX + 14]
+        dark = (np.abs(corner.astype(int) - TEXT_RGB).max(-1) <= 6).sum()
+        assert dark >= 5, (i, dark)  # the digit's strokes (the tick points left, away)
+        assert not (corner == rover_rgb(i)).all(-1).any(), i
+
+
+def test_a_captured_poi_says_when_and_labels_keep_off_rovers():
+    render = RenderConfig(width=400, height=400)
+    env = RoverEnv(n_rovers=2, n_req=2, steps=3, render_mode="rgb_array", render_config=render)
+    # both on POI 1 at (15, 0): captured at reset; then they leave
+    env.reset(seed=0, options={"rover_positions": [(14.0, 1.0), (14.0, -1.0)],
+                               "rover_headings": [np.pi, np.pi]})  # fmt: skip
+    world = env.unwrapped.world
+    assert poi_status(world_state(world, 0), env.config, 0)[:2] == ("captured t0", POI_CAPTURED)
+    assert poi_status(world_state(world, 0), env.config, 1) == ("0/2", TEXT, 1)
+    for _ in range(3):
+        env.step(np.array([[1.0, 0.0], [1.0, 0.0]]))  # heading pi: away from POI 1
+    state = world_state(world, 0)
+    assert state.poi_counts[0] == 0 and poi_status(state, env.config, 0)[0] == "captured t0"
+    # a rover parked where POI 2's count would first go (under its ring, at (0, 15))
+    tf = _view(env, render)
+    poi = np.round(tf([0.0, 15.0])).astype(int)
+    px, py = poi[0], poi[1] + ring_pixels(tf, env.config, 1) + 12
+    far_px, far_py = np.round(tf([-10.0, -10.0])).astype(int)
+    at_pixels = [((x - tf.cx) / tf.scale, (tf.cy - y) / tf.scale)  # pixel -> world
+                 for x, y in ((px, py), (far_px, far_py))]  # fmt: skip
+    env.reset(seed=0, options={"rover_positions": at_pixels, "rover_headings": [0.0, 0.0]})
+    assert _view(env, render) == tf  # the rovers are inside the POIs' view
+    frame = env.render()
+    patch = lambda x, y: frame[y - ROVER_PX : y + ROVER_PX + 1, x - ROVER_PX : x + ROVER_PX + 1]  # noqa: E731
+    own = (patch(px, py) == rover_rgb(0)).all(-1).sum()
+    assert own == (patch(far_px, far_py) == rover_rgb(1)).all(-1).sum()  # no label over it
 
 
 def test_view_keeps_a_far_rover_in_frame():

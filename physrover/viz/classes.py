@@ -40,7 +40,7 @@ def class_legend(domain) -> list[tuple[str, float]]:
     """The HUD's third line (text, size): the classes' legend, or for the paper's team how
     to read a POI."""
     if not domain.agents:
-        return [("POI: its value above right; k/n_req below: rovers in reach / needed", 0.4)]
+        return [("POI: value above; below: rovers in reach/needed, green once captured", 0.4)]
     parts = [f"{c.name} x{c.count} ({'captures, disc' if c.captures else 'diamond'})"
              for c in domain.agents]  # fmt: skip
     return [("classes: " + "   ".join(parts), 0.4)]

@@ -5,7 +5,9 @@ A frame shows one team:
 - POIs as circles sized by value, with their capture-radius ring, grey until captured and
   green from the step of capture, labelled with their value (above right) and ``n/n_req``
   (under the ring): the rovers within ``d_cap`` of the POI now (as the world's scoring counted
-  them, ``RoverWorld.poi_counts``) against the coupling, green when it is met now.
+  them, ``RoverWorld.poi_counts``) against the coupling, green when it is met now; once
+  captured, ``captured tN`` in green (:func:`poi_status`). Each label goes to the first of a
+  few spots around its POI that covers the fewest rovers and labels.
 - Each rover as a filled circle in its own colour (consistent by index; no greys or greens,
   so a rover never looks like a POI) with a thin dark outline, so overlapping bodies stay
   distinct, a heading tick and a trail of its last positions.
@@ -66,6 +68,8 @@ CROWD = len(PALETTE)
 CROWD_COLOUR = (120, 70, 40)  # BGR: a crowd's rovers (dark blue, apart from POI greys/greens)
 ROVER_PX = 6
 """Smallest drawn rover radius, pixels (the body's true size when larger)."""
+ID_SCALE = 0.5
+"""Font scale of the rovers' indices (``RenderConfig.ids``)."""
 
 HUD_PX = 66
 """Pixels at the top of a frame kept for the HUD (three lines): the view never puts a POI
@@ -222,6 +226,43 @@ def _text(img, text: str, org, scale: float, colour, thickness: int = 1, halo=Fa
     cv2.putText(img, text, org, font, scale, colour, thickness, aa)
 
 
+def _box(centre, half: int) -> tuple[int, int, int, int]:
+    """The pixel box ``(x0, y0, x1, y1)`` of half-size ``half`` around ``centre``."""
+    return centre[0] - half, centre[1] - half, centre[0] + half, centre[1] + half
+
+
+def _overlap(a, b) -> int:
+    """Pixels two boxes share."""
+    w = min(a[2], b[2]) - max(a[0], b[0])
+    h = min(a[3], b[3]) - max(a[1], b[1])
+    return max(0, w) * max(0, h)
+
+
+def _label(img, text, spots, scale, colour, thickness, avoid, placed) -> None:
+    """Draw ``text`` at the first of the candidate ``spots`` that covers the fewest pixels
+    of the ``avoid`` boxes (rover bodies, labels drawn so far) and add its box to
+    ``placed``. A spot is ``(x, y, align)``: the text's baseline at row y, starting at x
+    (align "left"), ending there ("right") or centred on it ("centre")."""
+    (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thickness)
+    shift = {"left": 0, "right": w, "centre": w // 2}
+    boxes = [(x - shift[align], y - h, x - shift[align] + w, y + 3) for x, y, align in spots]
+    best = min(range(len(boxes)), key=lambda j: sum(_overlap(boxes[j], b) for b in avoid))
+    _text(img, text, (boxes[best][0], boxes[best][3] - 3), scale, colour, thickness, halo=True)
+    placed.append(boxes[best])
+
+
+def poi_status(state, domain: DomainConfig, k: int) -> tuple[str, tuple, int]:
+    """The label under POI k (text, BGR colour, thickness): ``captured tN`` in green once it
+    was captured (at step N), else ``c/n``, the agents in range now against its coupling
+    (green, bold, when met now)."""
+    step = int(state.capture_step[k])
+    if 0 <= step <= state.step:
+        return f"captured t{step}", POI_CAPTURED, 1
+    n_req, count = domain.n_req_per_poi[k], int(state.poi_counts[k])
+    met = count >= n_req
+    return f"{count}/{n_req}", POI_CAPTURED if met else TEXT, 2 if met else 1
+
+
 def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig,
                  ids: bool = False) -> None:  # fmt: skip
     """Draw (n, R, 2) world positions as trails ending in outlined bodies with heading ticks
@@ -249,11 +290,11 @@ def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig,
         direction = np.array([np.cos(headings[i]), -np.sin(headings[i])])
         cv2.line(img, _pt(now[i] + radius_px * direction),
                  _pt(now[i] + 2.2 * radius_px * direction), TEXT, 2, aa)  # fmt: skip
-    if ids:
+    if ids:  # dark on a light rim: legible over any body or trail colour
         for i in range(now.shape[0]):
             radius_px = max(ROVER_PX, int(round(tf.scale * radii[i])))
             corner = (int(now[i][0]) + radius_px + 1, int(now[i][1]) - radius_px - 1)
-            _text(img, str(i), corner, 0.35, rover_colour(i), halo=True)
+            _text(img, str(i), corner, ID_SCALE, TEXT, 1, halo=True)
 
 
 def _draw_pois(img, tf: Transform, state, domain: DomainConfig) -> list:
@@ -332,18 +373,20 @@ def draw_frame(
     mark_classes(img, tf, state.positions[-1], domain, ROVER_PX, rover_colour)
     if state.positions.shape[1] > CROWD:
         _draw_pois(img, tf, state, domain)
-    # POI labels on top of the rovers: the value and the rovers in range / n_req.
-    counts = state.poi_counts
+    # POI labels on top of the rovers, each where it covers the fewest rovers: the value
+    # (and rules), and the rovers in range / n_req or, once captured, when.
+    bodies = [_box(_pt(p), ROVER_PX) for p in tf(state.positions[-1])]
+    placed: list = []
     for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
-        _text(img, f"{value:g} {poi_rule_label(domain, k)}", (x + 12, y - 10), 0.45, TEXT,
-              halo=True)  # fmt: skip
-        n_req = domain.n_req_per_poi[k]
-        met = counts[k] >= n_req
-        text, thickness = f"{counts[k]}/{n_req}", 2 if met else 1
-        (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5, thickness)
-        colour = POI_CAPTURED if met else TEXT
-        below = y + ring_pixels(tf, domain, k) + h + 5
-        _text(img, text, (x - w // 2, below), 0.5, colour, thickness, halo=True)
+        ring = ring_pixels(tf, domain, k)
+        text = f"{value:g} {poi_rule_label(domain, k)}".strip()
+        spots = [(x + 12, y - 10, "left"), (x - 12, y - 10, "right"), (x + 12, y + 20, "left"),
+                 (x - 12, y + 20, "right")]  # fmt: skip
+        _label(img, text, spots, 0.45, TEXT, 1, bodies + placed, placed)
+        text, colour, thickness = poi_status(state, domain, k)
+        spots = [(x, y + ring + 17, "centre"), (x, y - ring - 6, "centre"),
+                 (x + ring + 6, y + 5, "left"), (x - ring - 6, y + 5, "right")]  # fmt: skip
+        _label(img, text, spots, 0.5, colour, thickness, bodies + placed, placed)
     _draw_clump_inset(img, state.positions[-1], state.headings, tf, domain)
     # HUD.
     collisions = f" (collisions {'on' if domain.physics.collisions else 'off'})"
@@ -392,6 +435,7 @@ __all__ = [
     "VideoWriter",
     "draw_frame",
     "label",
+    "poi_status",
     "rover_colour",
     "rover_rgb",
     "world_frame",
