@@ -13,6 +13,7 @@ from physrover.config import ConfigError, DomainConfig, LearnConfig, RunConfig
 from physrover.experiment.playback import DIVIDER_PX, record_run
 from physrover.learn.policies import PolicyLayout
 from physrover.viz.classes import ring_pixels
+from physrover.viz.labels import poi_status
 from physrover.viz.render import (
     BACKGROUND,
     FOOTER_PX,
@@ -26,7 +27,6 @@ from physrover.viz.render import (
     Transform,
     VideoError,
     VideoWriter,
-    poi_status,
     rover_rgb,
     world_state,
 )

@@ -6,8 +6,7 @@ A frame shows one team:
   green from the step of capture, labelled with their value (above right) and ``n/n_req``
   (under the ring): the rovers within ``d_cap`` of the POI now (as the world's scoring counted
   them, ``RoverWorld.poi_counts``) against the coupling, green when it is met now; once
-  captured, ``captured tN`` in green (:func:`poi_status`). Each label goes to the first of a
-  few spots around its POI that covers the fewest rovers and labels.
+  captured, ``captured tN`` in green, each label off the rovers (:mod:`physrover.viz.labels`).
 - Each rover as a filled circle in its own colour (consistent by index; no greys or greens,
   so a rover never looks like a POI) with a thin dark outline, so overlapping bodies stay
   distinct, a heading tick and a trail of its last positions.
@@ -45,12 +44,18 @@ from physrover.config import ConfigBase, DomainConfig, check
 from physrover.config.domain import extent_of
 from physrover.domain.obstacles import box_corners
 from physrover.viz.classes import class_legend, mark_classes, poi_rule_label, ring_pixels
+from physrover.viz.labels import (
+    BACKGROUND,
+    POI_CAPTURED,
+    TEXT,
+    label_at,
+    label_box,
+    poi_status,
+    text_at,
+)
 from physrover.viz.video import VideoError, VideoWriter
 
-BACKGROUND = (246, 246, 246)  # BGR
-POI_FREE = (150, 150, 150)
-POI_CAPTURED = (60, 170, 60)
-TEXT = (40, 40, 40)
+POI_FREE = (150, 150, 150)  # BGR
 OUTLINE = (30, 30, 30)  # rover body outlines
 OBSTACLE = (110, 110, 110)  # the scenario's static discs
 # Rover colours, cycled by index, as RGB: 20 hues picked greedily, each as far as it can
@@ -217,52 +222,6 @@ def _pt(p) -> tuple[int, int]:
     return int(round(float(p[0]))), int(round(float(p[1])))
 
 
-def _text(img, text: str, org, scale: float, colour, thickness: int = 1, halo=False) -> None:
-    """Draw ``text`` at pixel ``org`` (bottom left); ``halo``: on a background-coloured rim,
-    legible over trails and bodies."""
-    font, aa = cv2.FONT_HERSHEY_SIMPLEX, cv2.LINE_AA
-    if halo:
-        cv2.putText(img, text, org, font, scale, BACKGROUND, thickness + 3, aa)
-    cv2.putText(img, text, org, font, scale, colour, thickness, aa)
-
-
-def _box(centre, half: int) -> tuple[int, int, int, int]:
-    """The pixel box ``(x0, y0, x1, y1)`` of half-size ``half`` around ``centre``."""
-    return centre[0] - half, centre[1] - half, centre[0] + half, centre[1] + half
-
-
-def _overlap(a, b) -> int:
-    """Pixels two boxes share."""
-    w = min(a[2], b[2]) - max(a[0], b[0])
-    h = min(a[3], b[3]) - max(a[1], b[1])
-    return max(0, w) * max(0, h)
-
-
-def _label(img, text, spots, scale, colour, thickness, avoid, placed) -> None:
-    """Draw ``text`` at the first of the candidate ``spots`` that covers the fewest pixels
-    of the ``avoid`` boxes (rover bodies, labels drawn so far) and add its box to
-    ``placed``. A spot is ``(x, y, align)``: the text's baseline at row y, starting at x
-    (align "left"), ending there ("right") or centred on it ("centre")."""
-    (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thickness)
-    shift = {"left": 0, "right": w, "centre": w // 2}
-    boxes = [(x - shift[align], y - h, x - shift[align] + w, y + 3) for x, y, align in spots]
-    best = min(range(len(boxes)), key=lambda j: sum(_overlap(boxes[j], b) for b in avoid))
-    _text(img, text, (boxes[best][0], boxes[best][3] - 3), scale, colour, thickness, halo=True)
-    placed.append(boxes[best])
-
-
-def poi_status(state, domain: DomainConfig, k: int) -> tuple[str, tuple, int]:
-    """The label under POI k (text, BGR colour, thickness): ``captured tN`` in green once it
-    was captured (at step N), else ``c/n``, the agents in range now against its coupling
-    (green, bold, when met now)."""
-    step = int(state.capture_step[k])
-    if 0 <= step <= state.step:
-        return f"captured t{step}", POI_CAPTURED, 1
-    n_req, count = domain.n_req_per_poi[k], int(state.poi_counts[k])
-    met = count >= n_req
-    return f"{count}/{n_req}", POI_CAPTURED if met else TEXT, 2 if met else 1
-
-
 def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig,
                  ids: bool = False) -> None:  # fmt: skip
     """Draw (n, R, 2) world positions as trails ending in outlined bodies with heading ticks
@@ -294,7 +253,7 @@ def _draw_rovers(img, tf: Transform, positions, headings, domain: DomainConfig,
         for i in range(now.shape[0]):
             radius_px = max(ROVER_PX, int(round(tf.scale * radii[i])))
             corner = (int(now[i][0]) + radius_px + 1, int(now[i][1]) - radius_px - 1)
-            _text(img, str(i), corner, ID_SCALE, TEXT, 1, halo=True)
+            text_at(img, str(i), corner, ID_SCALE, TEXT, 1, halo=True)
 
 
 def _draw_pois(img, tf: Transform, state, domain: DomainConfig) -> list:
@@ -333,7 +292,7 @@ def _draw_clump_inset(img, now, headings, tf: Transform, domain: DomainConfig) -
     canvas[:] = BACKGROUND
     _draw_rovers(canvas, zoom, now[None], headings, domain)
     cv2.rectangle(canvas, (0, 0), (size - 1, size - 1), TEXT, 1)
-    _text(canvas, f"x{scale / tf.scale:.1f}", (5, size - 6), 0.4, TEXT)
+    text_at(canvas, f"x{scale / tf.scale:.1f}", (5, size - 6), 0.4, TEXT)
     x0 = img.shape[1] - size - INSET_GAP
     img[INSET_GAP : INSET_GAP + size, x0 : x0 + size] = canvas
 
@@ -375,18 +334,18 @@ def draw_frame(
         _draw_pois(img, tf, state, domain)
     # POI labels on top of the rovers, each where it covers the fewest rovers: the value
     # (and rules), and the rovers in range / n_req or, once captured, when.
-    bodies = [_box(_pt(p), ROVER_PX) for p in tf(state.positions[-1])]
+    bodies = [label_box(_pt(p), ROVER_PX) for p in tf(state.positions[-1])]
     placed: list = []
     for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
         ring = ring_pixels(tf, domain, k)
         text = f"{value:g} {poi_rule_label(domain, k)}".strip()
         spots = [(x + 12, y - 10, "left"), (x - 12, y - 10, "right"), (x + 12, y + 20, "left"),
                  (x - 12, y + 20, "right")]  # fmt: skip
-        _label(img, text, spots, 0.45, TEXT, 1, bodies + placed, placed)
+        label_at(img, text, spots, 0.45, TEXT, 1, bodies + placed, placed)
         text, colour, thickness = poi_status(state, domain, k)
         spots = [(x, y + ring + 17, "centre"), (x, y - ring - 6, "centre"),
                  (x + ring + 6, y + 5, "left"), (x - ring - 6, y + 5, "right")]  # fmt: skip
-        _label(img, text, spots, 0.5, colour, thickness, bodies + placed, placed)
+        label_at(img, text, spots, 0.5, colour, thickness, bodies + placed, placed)
     _draw_clump_inset(img, state.positions[-1], state.headings, tf, domain)
     # HUD.
     collisions = f" (collisions {'on' if domain.physics.collisions else 'off'})"
@@ -394,7 +353,7 @@ def draw_frame(
     lines = [(f"step {state.step}/{domain.steps}   G {state.G:g}", 0.55),
              (f"n_req {domain.n_req}   {motion}", 0.55), *class_legend(domain)]  # fmt: skip
     for j, (text, size) in enumerate(lines):
-        _text(img, text, (10, 20 + 20 * j), size, TEXT)
+        text_at(img, text, (10, 20 + 20 * j), size, TEXT)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
@@ -423,21 +382,9 @@ def world_frame(world, team: int, render: RenderConfig) -> np.ndarray:
 def label(frame: np.ndarray, text: str) -> np.ndarray:
     """A copy of an RGB frame with ``text`` in its bottom-left corner."""
     out = frame.copy()
-    _text(out, text, (10, out.shape[0] - 12), 0.6, TEXT[::-1])
+    text_at(out, text, (10, out.shape[0] - 12), 0.6, TEXT[::-1])
     return out
 
 
-__all__ = [
-    "FrameState",
-    "RenderConfig",
-    "Transform",
-    "VideoError",
-    "VideoWriter",
-    "draw_frame",
-    "label",
-    "poi_status",
-    "rover_colour",
-    "rover_rgb",
-    "world_frame",
-    "world_state",
-]
+__all__ = ["FrameState", "RenderConfig", "Transform", "VideoError", "VideoWriter", "draw_frame",
+           "label", "rover_colour", "rover_rgb", "world_frame", "world_state"]  # fmt: skip
