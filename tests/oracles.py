@@ -639,8 +639,8 @@ def lab_step_value(positions, poi, counting, in_reach, coupling, removed=-1):
     (AADILab/influence-shaping ``custom_env.py``, ``AbstractRoverConstraint.
     _step_is_satisfied``): ``positions`` (R, 2) of the step, ``counting`` the agents of its
     type ("rover"), ``in_reach(i, dist)`` its ``captured``; agent ``removed`` (or a set of
-    agents) is the lab's counterfactually removed one (physrover's rule, an infinite
-    distance, where the lab's moves it to [-1, -1])."""
+    agents) is the lab's counterfactually removed one (at [-1, -1], which the lab reads as
+    an infinite distance)."""
     count = 0
     dists = []
     constraint_satisfied = False

@@ -34,7 +34,7 @@ The conventions, each the lab's code as it runs (``src/influence/custom_env.py``
   are an ``explicit`` scenario.
 
 The differences physrover keeps on purpose (its credits' pages list them: AllOrNothing's
-agent 0, removal at (-1, -1)) are physrover's rules here too.
+agent 0) are physrover's rules here too.
 """
 
 from __future__ import annotations

@@ -33,10 +33,11 @@ without influencers all are D. Differences from the lab's code, on purpose:
 - the radius is per class (the lab hard-codes 5.0), and any class may influence (the lab's
   ``type() == "uav"``) any counted class (``"rover"``);
 - under AllOrNothing, where nobody influences k at t nobody is credited (the lab's
-  ``highest_influence = -1`` credits agent 0);
-- a (t, k) removed at a step is left out of step t (the lab moves it to (-1, -1), where it
-  is still counted by a POI whose range reaches that point and, for a POI valued by
-  distance, still among the agents whose distances are sorted).
+  ``highest_influence = -1`` credits agent 0).
+
+A (t, k) removed at a step is left out of step t; the lab moves the agent to (-1, -1),
+which its constraints read as an infinite distance (``custom_env.py``,
+``_step_is_satisfied``): the same.
 
 The lab's ``manual`` assignment is ``"ID-manual"`` (:func:`manual_difference`), its
 ``add_G`` a class's ``feedback_plus_G`` (:class:`~physrover.domain.scoring.credit.ByClass`).
