@@ -27,6 +27,7 @@ from physrover.cli.commands import (
     cmd_sweep,
     cmd_train,
 )
+from physrover.cli.lab_cmd import add_import_lab
 from physrover.cli.reports import cmd_curves, cmd_results, cmd_table
 from physrover.config import ConfigError
 from physrover.core import plugins
@@ -263,6 +264,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     p.set_defaults(func=cmd_benchmarl)
+
+    add_import_lab(sub)
 
     p = sub.add_parser("bench", help="time the world or the learner (benchmarks, not tests)")
     p.add_argument(

@@ -16,7 +16,9 @@ The conventions, each the lab's code as it runs (``src/influence/custom_env.py``
   map (``bounds``, default ``[0, map_size]``); ``needs_uav_to_move`` is ``moves_with =
   ["uav"]`` within the rover's observation radius.
 - *Sensors*: an agent's observation radius is its class's lidar radius (what capture by
-  sight reads); ``SmartLidar`` is the lidar with ``channels = "by-class"``, sectors of
+  sight reads); ``SmartLidar`` (and ``RoverLidar``, which senses no POI: every POI is
+  hidden from its class, so its POI block reads ``empty``, inputs the lab's network does
+  not have) is the lidar with ``channels = "by-class"``, sectors of
   ``resolution`` degrees fixed in the world frame, ``accum_type`` sum or average
   (``compose`` "density" or "average"), ``measurement_type`` ``inverse_distance_squared``
   or ``one_minus_inverse_distance_over_observation_radius`` (``measure``
@@ -30,8 +32,11 @@ The conventions, each the lab's code as it runs (``src/influence/custom_env.py``
   valued by distance (``value_by = "distance"``, the lab's only POI), ``coupling`` its
   ``n_req``, ``constraint`` final (the default) or sequential (``score_at`` "final" or
   "any"), captured within ``capture_radius`` or by sight (``capture_by``), gone from
-  sight once captured under ``disappear_bool`` (``disappear = "captured"``); fixed positions
-  are an ``explicit`` scenario.
+  sight once captured under ``disappear_bool`` (``disappear = "captured"``, where a rover
+  senses by SmartLidar and the POI is hidden: elsewhere the lab's flag does nothing); fixed
+  positions are an ``explicit`` scenario, positions on one ``random_circle`` a ``ring-random`` one
+  around the circle's centre, which is then physrover's origin (every agent position, box
+  and bound moves with it: distances, bearings and moves do not change).
 
 The differences physrover keeps on purpose (its credits' pages list them: AllOrNothing's
 agent 0) are physrover's rules here too.
@@ -45,6 +50,8 @@ from typing import Any
 
 from physrover.config.base import ConfigError
 from physrover.config.domain import DomainConfig
+from physrover.config.learn import LearnConfig
+from physrover.config.run import RunConfig
 
 INFLUENCE_RADIUS = 5.0
 """The lab's influence radius (``computer.hpp``, ``is_influencing``), world units."""
@@ -110,9 +117,9 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
     """The lidar table of one lab agent (module docstring)."""
     sensor = agent.get("sensor") or {}
     kind = sensor.get("type", "SmartLidar")
-    if kind != "SmartLidar":
-        raise ConfigError(f"{where}.sensor.type", f"physrover reads SmartLidar, not {kind!r} "
-                          "yet")  # fmt: skip
+    if kind not in ("SmartLidar", "RoverLidar"):
+        raise ConfigError(f"{where}.sensor.type", f"physrover reads SmartLidar and RoverLidar,"
+                          f" not {kind!r} yet")  # fmt: skip
     for key in ("observable_subtypes",):
         if agent.get(key):
             raise ConfigError(f"{where}.{key}", "POI subtypes are not in physrover yet")
@@ -128,7 +135,8 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
     return {"kind": "lidar", "sectors": int(360 // resolution), "channels": "by-class",
             "bearing": "world", "radius": float(_get(agent, "observation_radius", where)),
             "compose": LAB_ACCUM[accum], "measure": LAB_MEASURES[measure],
-            "empty": float(sensor.get("default_value", -1.0))}  # fmt: skip
+            "empty": float(sensor.get("default_value", -1.0)),
+            "blind": kind == "RoverLidar"}  # fmt: skip
 
 
 def _spawn(position: dict, where: str) -> tuple[str, Any]:
@@ -211,15 +219,19 @@ def _classes(lab: dict) -> list[dict[str, Any]]:
     return tables
 
 
-def _pois(lab: dict, uavs: list[str]) -> tuple[list[dict[str, Any]], list[list[float]]]:
-    """The ``[[pois]]`` tables and fixed positions of a lab config (module docstring)."""
+def _pois(lab: dict, classes: list[dict]) -> tuple[list[dict[str, Any]], list[tuple[str, Any]]]:
+    """The ``[[pois]]`` tables and each POI's lab spawn (:func:`_spawn`) of a lab config
+    (module docstring)."""
     tables, positions = [], []
     pois = lab["env"]["pois"]
+    # the lab's disappear_bool acts only in a rover's SmartLidar scan, on hidden POIs
+    smart = any(c["captures"] and not c["sensor"]["blind"] for c in classes)
     for kind in ("rover_pois", "hidden_pois"):
         for i, poi in enumerate(pois.get(kind) or []):
             where = f"env.pois.{kind}[{i}]"
             if poi.get("subtype"):
                 raise ConfigError(f"{where}.subtype", "POI subtypes are not in physrover yet")
+            live = smart and kind == "hidden_pois"
             constraint = poi.get("constraint", "final")
             if constraint not in LAB_CONSTRAINTS:
                 raise ConfigError(f"{where}.constraint", f"final or sequential, got "
@@ -229,20 +241,57 @@ def _pois(lab: dict, uavs: list[str]) -> tuple[list[dict[str, Any]], list[list[f
                      "n_req": int(_get(poi, "coupling", where)), "value_by": "distance",
                      "score_at": LAB_CONSTRAINTS[constraint],
                      "sense_radius": float(_get(poi, "observation_radius", where)),
-                     "disappear": "captured" if poi.get("disappear_bool") else "never"}  # fmt: skip
+                     "disappear": "captured" if live and poi.get("disappear_bool")
+                     else "never"}  # fmt: skip
             if radius == -1.0:
                 table["capture_by"] = "sight"
             else:
                 table.update(capture_by="radius-or-sight", capture_radius=radius)
-            if kind == "hidden_pois":
-                table["visible_to"] = uavs
+            seen = [c["name"] for c in classes if not c["sensor"]["blind"]
+                    and (kind == "rover_pois" or not c["captures"])]  # fmt: skip
+            if not seen:
+                raise ConfigError(
+                    f"{where}",
+                    "no agent senses this POI (UAVs see hidden POIs; "
+                    "RoverLidar sees none): physrover cannot hide it from all",
+                )
+            if len(seen) < len(classes):
+                table["visible_to"] = seen
             tables.append(table)
-            rule, value = _spawn(_get(poi, "position", where), f"{where}.position")
-            if rule != "fixed":
-                raise ConfigError(f"{where}.position.spawn_rule", f"physrover places POIs by "
-                                  f"a scenario; {rule!r} POIs are not in it yet")  # fmt: skip
-            positions.append(value)
+            positions.append(_spawn(_get(poi, "position", where), f"{where}.position"))
     return tables, positions
+
+
+def _scenario(spawns: list[tuple[str, Any]]) -> tuple[dict[str, Any], tuple[float, float]]:
+    """The ``[scenario]`` table of the POIs' lab spawns and the lab point that is
+    physrover's origin: fixed POIs as they are (origin (0, 0)), or POIs on one shared circle
+    as ``ring-random`` around its centre, one draw per generation (the lab's harness)."""
+    rules = {rule for rule, _ in spawns}
+    if rules == {"fixed"}:
+        return {"kind": "explicit", "poi_positions": [v for _, v in spawns]}, (0.0, 0.0)
+    circles = {tuple(v) for rule, v in spawns if rule == "circle"}
+    if rules == {"circle"} and len(circles) == 1:
+        cx, cy, r = circles.pop()
+        return {"kind": "ring-random", "poi_ring_radius": r, "ring_thickness": 0.0,
+                "redraw": "generation"}, (cx, cy)  # fmt: skip
+    raise ConfigError("env.pois[].position", "physrover places POIs by one scenario (all "
+                      "fixed, or all on one random_circle); these spawn by "
+                      f"{' and '.join(sorted(rules))} each")  # fmt: skip
+
+
+def _shift(table: dict[str, Any], origin: tuple[float, float]) -> dict[str, Any]:
+    """An ``[[agents]]`` table's positions, boxes and bounds with ``origin`` moved to (0, 0)."""
+    ox, oy = origin
+    box = lambda b: [b[0] - ox, b[1] - ox, b[2] - oy, b[3] - oy]  # noqa: E731
+    out = dict(table, bounds=box(table["bounds"]))
+    if "spawn_positions" in out:
+        out["spawn_positions"] = [[x - ox, y - oy] for x, y in out["spawn_positions"]]
+    if "spawn_box" in out:
+        out["spawn_box"] = box(out["spawn_box"])
+    if "spawn_circle" in out:
+        x, y, r = out["spawn_circle"]
+        out["spawn_circle"] = [x - ox, y - oy, r]
+    return out
 
 
 def lab_domain(lab: dict, steps: int | None = None) -> DomainConfig:
@@ -253,16 +302,94 @@ def lab_domain(lab: dict, steps: int | None = None) -> DomainConfig:
         raise ConfigError("env", "missing: not a lab config")
     steps = steps if steps is not None else _get(lab.get("ccea", {}), "num_steps", "ccea")
     agents = _classes(lab)
-    uavs = [t["name"] for t in agents if not t["captures"]]
-    pois, positions = _pois(lab, uavs)
+    pois, spawns = _pois(lab, agents)
+    for table in agents:
+        del table["sensor"]["blind"]
     if not pois:
         raise ConfigError("env.pois", "no POI: physrover needs at least one")
+    scenario, origin = _scenario(spawns)
     return DomainConfig.from_tables({
         "domain": {"steps": int(steps), "d_min": LAB_D_MIN},
-        "scenario": {"kind": "explicit", "poi_positions": positions},
-        "agents": agents,
+        "scenario": scenario,
+        "agents": [_shift(table, origin) for table in agents],
         "pois": pois,
     })  # fmt: skip
 
 
-__all__ = ["INFLUENCE_RADIUS", "LAB_D_MIN", "lab_domain"]
+def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
+    """The ``[learn]`` table of a lab config's ``ccea`` section, appending to ``notes`` what
+    physrover does otherwise (module docstring of :func:`lab_run`)."""
+    hidden = _get(_get(ccea, "network", "ccea"), "hidden_layers", "ccea.network")
+    hidden = [hidden] if isinstance(hidden, int) else list(hidden)
+    if len(hidden) != 1:
+        raise ConfigError("ccea.network.hidden_layers", f"physrover's policies have one hidden "
+                          f"layer, got {hidden}")  # fmt: skip
+    notes.append("hidden layer: ReLU here, tanh in the lab; weights start U(+-1/sqrt(fan_in)) "
+                 "here, U(-1, 1) in the lab")  # fmt: skip
+    mutation = _get(ccea, "mutation", "ccea")
+    if float(mutation.get("mean", 0.0)) != 0.0:
+        raise ConfigError("ccea.mutation.mean", f"physrover's noise has mean 0, got "
+                          f"{mutation['mean']}")  # fmt: skip
+    selection = _get(_get(ccea, "selection", "ccea"), "n_elites_binary_tournament",
+                     "ccea.selection")  # fmt: skip
+    if selection.get("n_individual_elites_based_on_team_fitness", 0):
+        raise ConfigError("ccea.selection.n_elites_binary_tournament."
+                          "n_individual_elites_based_on_team_fitness",
+                          "elites by team fitness are not in physrover yet")  # fmt: skip
+    formation = (ccea.get("team_formation") or {}).get("type", "random_teams")
+    formations = {"random_teams": "random", "softmax_teams": "softmax"}
+    if formation not in formations:
+        raise ConfigError("ccea.team_formation.type", f"physrover forms random_teams or "
+                          f"softmax_teams, not {formation!r} yet")  # fmt: skip
+    rollouts = int(ccea.get("evaluation", {}).get("multi_rollout", {}).get("num_rollouts", 1))
+    if rollouts != 1:
+        raise ConfigError("ccea.evaluation.multi_rollout.num_rollouts", "physrover plays one "
+                          f"episode per team and generation here, got {rollouts}")  # fmt: skip
+    if not ccea.get("evaluation", {}).get("test_adhoc_team_switch", False):
+        notes.append("learning curve: the champion team (each population's best) here; the "
+                     "lab's default logs its best team by G")  # fmt: skip
+    return {"method": "D", "generations": int(_get(ccea, "num_generations", "ccea")),
+            "population": int(_get(_get(ccea, "populations", "ccea"), "agent_population_size",
+                                   "ccea.populations")),
+            "hidden": int(hidden[0]), "mutation": "gauss",
+            "mutation_rate": float(_get(mutation, "independent_probability", "ccea.mutation")),
+            "mutation_scale": float(_get(mutation, "std_deviation", "ccea.mutation")),
+            "team_formation": formations[formation], "softmax_temperature": 1.0,
+            "selection": "elites",
+            "n_individual_elites": int(_get(selection, "n_individual_elites", "ccea.selection")),
+            "n_team_elites": int(_get(selection, "n_team_elites", "ccea.selection")),
+            "eval_episodes": 1}  # fmt: skip
+
+
+def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
+    """The :class:`~physrover.config.RunConfig` of a whole lab config (``env`` and
+    ``ccea``), and notes on what physrover does otherwise. The CCEA: ``[learn] method =
+    "D"`` (a policy's fitness is its feedback in one episode: the lab's one rollout), each
+    class's own feedback, Gaussian mutation, the lab's elites selection and team elites,
+    random or softmax teams (temperature 1), one evaluation episode; ``num_trials`` trials
+    are seeds (``physrover sweep``). Refused: more hidden layers, a mutation mean, elites by
+    team fitness, fixed teams, several rollouts per team."""
+    notes: list[str] = []
+    domain = lab_domain(lab)
+    learn = _learn(lab["ccea"], notes)
+    learn["feedback"] = domain.agents[0].feedback or "D"
+    seed = (lab.get("debug", {}).get("random_seed") or {}).get("set_seed")
+    if seed is not None:
+        learn["seed"] = int(seed)
+    notes.append("scored states: the T + 1 positions here; the lab's training paths hold 3 "
+                 "a step (raw, clamped to the agent's box, to the map)")  # fmt: skip
+    radii = [a.sensor.radius for a in domain.agents]
+    if any(p.sense_radius < max(radii) for p in domain.pois):
+        notes.append("a POI's observation radius also limits who senses it here (the lab: "
+                     "only who captures it by sight)")  # fmt: skip
+    if any(p.disappear != "never" for p in domain.pois):
+        notes.append("disappear_bool: a POI is gone from sight the step after its capture "
+                     "here; the lab's once a rover's SmartLidar is within 1.0 of it")  # fmt: skip
+    trials = lab.get("experiment", {}).get("num_trials")
+    if trials:
+        notes.append(f"{trials} trials: one run per seed, e.g. physrover sweep with seeds = "
+                     f"{trials}")  # fmt: skip
+    return RunConfig(domain, LearnConfig.from_dict(learn)), notes
+
+
+__all__ = ["INFLUENCE_RADIUS", "LAB_D_MIN", "lab_domain", "lab_run"]

@@ -1,0 +1,127 @@
+"""``physrover import-lab``: the lab's shipped example config as physrover TOML, and the
+lab configs physrover refuses, each in one line naming the lab's key (issue 43)."""
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+
+from physrover.cli.main import main
+from physrover.config import ConfigError, RunConfig
+from physrover.config.lab import lab_domain, lab_run
+
+EXAMPLE = Path(__file__).parent / "data" / "lab-example" / "config.yaml"
+
+
+def test_the_labs_example_config_becomes_a_run_that_says_what_differs(tmp_path, capsys):
+    out = tmp_path / "run.toml"
+    assert main(["import-lab", str(EXAMPLE), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "note: hidden layer: ReLU here, tanh in the lab" in err
+    assert "note: 50 trials: one run per seed" in err
+    text = out.read_text()
+    assert text.startswith("# config.yaml, a config of the paper's lab")
+    assert "# - scored states: the T + 1 positions here" in text
+    run = RunConfig.load(out)
+    assert run == lab_run(yaml.safe_load(EXAMPLE.read_text()))[0]  # the file is the run
+    learn, domain = run.learn, run.domain
+    # ccea: 50 policies, one hidden layer of 15, Gaussian mutation p 0.5 sd 0.1, softmax
+    # teams, 10 individual and 10 team elites, 2000 generations of 50 steps, one rollout
+    assert (learn.population, learn.hidden, learn.generations, domain.steps) == (50, 15, 2000, 50)
+    assert (learn.mutation, learn.mutation_rate, learn.mutation_scale) == ("gauss", 0.5, 0.1)
+    assert (learn.team_formation, learn.selection) == ("softmax", "elites")
+    assert (learn.n_individual_elites, learn.n_team_elites, learn.method) == (10, 10, "D")
+    # env: the hidden POI on a random circle of radius 10 around (25, 25): the origin here
+    assert domain.scenario.kind == "ring-random" and domain.scenario.poi_ring_radius == 10.0
+    assert domain.scenario.redraw == "generation"
+    rover, uav = domain.agents
+    assert rover.spawn_positions == ((0.0, 0.0),) and rover.bounds == (-25.0, 25.0, -25.0, 25.0)
+    assert (rover.feedback, uav.feedback) == ("ID-step", "ID-step")  # AllOrNothing, timestep
+    assert (rover.captures, uav.captures, uav.influence_radius) == (True, False, 5.0)
+    # one_minus_inverse_distance_over_observation_radius, sum, 90 degree sectors, default 0
+    assert (rover.sensor.measure, rover.sensor.compose, rover.sensor.sectors) == (
+        "linear", "density", 4)  # fmt: skip
+    assert (rover.sensor.radius, uav.sensor.radius, rover.sensor.empty) == (5.0, 25.0, 0.0)
+    (poi,) = domain.pois
+    assert (poi.capture_by, poi.capture_radius, poi.value_by) == ("radius-or-sight", 5.0,
+                                                                 "distance")  # fmt: skip
+    assert poi.visible_to == ("uav",) and poi.score_at == "any"  # hidden, sequential
+    # its rovers sense by RoverLidar: the lab's disappear_bool does nothing there
+    assert poi.disappear == "never"
+
+
+def _example() -> dict:
+    return yaml.safe_load(EXAMPLE.read_text())
+
+
+def _with(path: str, value) -> dict:
+    """The example config with the key at dotted ``path`` (``[i]`` for list items) set."""
+    lab = copy.deepcopy(_example())
+    *parents, last = path.replace("[", ".").replace("]", "").split(".")
+    node = lab
+    for key in parents:
+        node = node[int(key)] if key.isdigit() else node[key]
+    node[int(last) if last.isdigit() else last] = value
+    return lab
+
+
+@pytest.mark.parametrize(("path", "value", "message"), [
+    ("env.agents.rovers[0].action", {"type": "pick_uav"},
+     "env.agents.rovers[0].action.type: physrover reads dxdy, not 'pick_uav' yet"),
+    ("env.agents.uavs[0].sensor", {"type": "UavDistanceLidar"},
+     "env.agents.uavs[0].sensor.type: physrover reads SmartLidar and RoverLidar"),
+    ("env.agents.rovers[0].reward_type", "Shaped",
+     "env.agents.rovers[0].reward_type: unknown 'Shaped'"),
+    ("env.agents.rovers[0].resolution", 70, "env.agents.rovers[0].resolution: must divide 360"),
+    ("env.pois.hidden_pois[0].position", {"spawn_rule": "random_uniform", "random_uniform": {
+        "low_x": 0.0, "high_x": 5.0, "low_y": 0.0, "high_y": 5.0}},
+     "env.pois[].position: physrover places POIs by one scenario"),
+    ("env.pois.hidden_pois[0].constraint", "eventually",
+     "env.pois.hidden_pois[0].constraint: final or sequential, got 'eventually'"),
+    ("ccea.network.hidden_layers", [15, 15],
+     "ccea.network.hidden_layers: physrover's policies have one hidden layer"),
+    ("ccea.team_formation", {"type": "fixed_teams"},
+     "ccea.team_formation.type: physrover forms random_teams or softmax_teams"),
+    ("ccea.evaluation.multi_rollout.num_rollouts", 3,
+     "ccea.evaluation.multi_rollout.num_rollouts: physrover plays one episode"),
+])  # fmt: skip
+def test_what_physrover_cannot_express_is_refused_in_one_line(path, value, message, tmp_path,
+                                                               capsys):  # fmt: skip
+    with pytest.raises(ConfigError) as error:
+        lab_run(_with(path, value))
+    assert str(error.value).startswith(message)
+    config = tmp_path / "lab.yaml"
+    config.write_text(yaml.safe_dump(_with(path, value)))
+    assert main(["import-lab", str(config)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"physrover: error: {message}")
+
+
+def test_files_that_are_not_lab_configs_say_so(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("env: [unclosed")
+    assert main(["import-lab", str(bad)]) == 2
+    assert "bad.yaml: not YAML" in capsys.readouterr().err
+    bad.write_text("- a list\n")
+    assert main(["import-lab", str(bad)]) == 2
+    assert "not a lab config" in capsys.readouterr().err
+    with pytest.raises(ConfigError, match="env: missing: not a lab config"):
+        lab_domain({"ccea": {}}, steps=5)
+
+
+def test_a_rover_class_splits_where_its_agents_differ_but_not_for_a_spawn():
+    lab = _example()
+    second = copy.deepcopy(lab["env"]["agents"]["rovers"][0])
+    second["position"]["fixed"] = [30.0, 25.0]
+    lab["env"]["agents"]["rovers"].append(second)
+    domain = lab_domain(lab)
+    assert [a.name for a in domain.agents] == ["rover", "uav"]  # one class, two spawns
+    assert domain.agents[0].spawn_positions == ((0.0, 0.0), (5.0, 0.0))
+    third = copy.deepcopy(second)
+    third["reward_type"] = "Difference"
+    lab["env"]["agents"]["rovers"].append(third)
+    domain = lab_domain(lab)
+    assert [(a.name, a.count, a.feedback) for a in domain.agents] == [
+        ("rover_1", 2, "ID-step"), ("rover_2", 1, "D"), ("uav", 1, "ID-step")]  # fmt: skip
+    assert domain.agents[0].moves_with == ()  # needs_uav_to_move is false in the example
