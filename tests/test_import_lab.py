@@ -67,10 +67,12 @@ def _with(path: str, value) -> dict:
 
 
 @pytest.mark.parametrize(("path", "value", "message"), [
-    ("env.agents.rovers[0].action", {"type": "pick_uav"},
-     "env.agents.rovers[0].action.type: physrover reads dxdy, not 'pick_uav' yet"),
-    ("env.agents.uavs[0].sensor", {"type": "UavDistanceLidar"},
-     "env.agents.uavs[0].sensor.type: physrover reads SmartLidar and RoverLidar"),
+    ("env.agents.rovers[0].action", {"type": "teleport"},
+     "env.agents.rovers[0].action.type: dxdy or pick_uav, got 'teleport'"),
+    ("env.agents.rovers[0].policy", {"type": "follow"},
+     "env.agents.rovers[0].policy.type: network, or follow with pick_uav, got 'follow' with"),
+    ("env.agents.uavs[0].sensor", {"type": "Camera"},
+     "env.agents.uavs[0].sensor.type: SmartLidar, RoverLidar or UavDistanceLidar, got"),
     ("env.agents.rovers[0].reward_type", "Shaped",
      "env.agents.rovers[0].reward_type: unknown 'Shaped'"),
     ("env.agents.rovers[0].resolution", 70, "env.agents.rovers[0].resolution: must divide 360"),
@@ -108,6 +110,20 @@ def test_files_that_are_not_lab_configs_say_so(tmp_path, capsys):
     assert "not a lab config" in capsys.readouterr().err
     with pytest.raises(ConfigError, match="env: missing: not a lab config"):
         lab_domain({"ccea": {}}, steps=5)
+
+
+def test_rovers_that_pick_or_follow_a_uav_by_its_distance():
+    lab = _example()
+    rover = lab["env"]["agents"]["rovers"][0]
+    rover.update(action={"type": "pick_uav"}, sensor={"type": "UavDistanceLidar"})
+    run, notes = lab_run(lab)
+    rover = run.domain.agents[0]
+    assert (rover.action, rover.picks, rover.sensor.kind) == ("pick", ("uav",), "distances")
+    assert (rover.sensor.classes, rover.sensor.radius) == (("uav",), 5.0)
+    assert any(note.startswith("pick_uav: the lab's network has one output per UAV") for note
+               in notes)  # fmt: skip
+    lab["env"]["agents"]["rovers"][0]["policy"] = {"type": "follow"}
+    assert lab_run(lab)[0].domain.agents[0].action == "follow"
 
 
 def test_a_rover_class_splits_where_its_agents_differ_but_not_for_a_spawn():

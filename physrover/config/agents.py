@@ -10,8 +10,13 @@ counts. A class sets:
 - ``captures``: whether its agents count toward a POI's coupling (the lab's rovers do, its
   UAVs do not; an agent that does not count has D = 0, except at a typed POI, ``[[pois]]
   require``, which counts exactly the classes it names);
-- ``action``: ``"body"``, the paper's (forward, left) in the agent's frame, or ``"world"``,
-  the lab's ``dxdy`` (x, y) in the world frame;
+- ``action``: ``"body"``, the paper's (forward, left) in the agent's frame, ``"world"``,
+  the lab's ``dxdy`` (x, y) in the world frame, ``"pick"``, the lab's ``pick_uav`` (the
+  command's first component picks one of the agents of the ``picks`` classes, or none,
+  and the agent steps towards it), or ``"follow"``, the lab's fixed ``follow`` policy (the
+  nearest agent of the ``picks`` classes within the agent's sensor radius; its command is
+  not read): :mod:`physrover.domain.agents.roles`;
+- ``picks``: the classes a ``"pick"`` or ``"follow"`` agent moves towards (the lab's UAVs);
 - ``max_speed``: the command's scale per component after clipping to [-1, 1] (the lab's
   ``tanh`` output times its max velocity);
 - ``sensor``: its own ``[sensor]``-style table (default: the domain's ``[sensor]``);
@@ -56,7 +61,7 @@ from physrover.config.base import (
 )
 from physrover.core.registry import CREDITS
 
-ACTIONS = ("body", "world")
+ACTIONS = ("body", "world", "pick", "follow")
 SPAWNS = ("disc", "fixed", "box", "circle")
 NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
 RESERVED = ("done", "terminated", "truncated", "next", "reward", "action", "observation")
@@ -76,13 +81,17 @@ class AgentClass(ConfigBase):
     captures: bool = True
     """Its agents count toward POIs' couplings."""
     action: str = "body"
-    """"body": (forward, left) in the agent's frame; "world": (x, y)."""
+    """"body": (forward, left) in the agent's frame; "world": (x, y); "pick": step towards
+    the agent of ``picks`` that the command's first component picks; "follow": towards the
+    nearest one in sensor range."""
     max_speed: float = 1.0
     """World units per step per action component (after clipping to [-1, 1])."""
     sensor: Any = None
     """Its [sensor] table; None: the domain's."""
     moves_with: tuple[str, ...] = ()
     """Classes one of whose agents must be near for an agent of this class to move."""
+    picks: tuple[str, ...] = ()
+    """Under ``action = "pick"`` or ``"follow"``: the classes whose agents it moves to."""
     moves_with_radius: float = 0.0
     """How near, world units; 0: this class's sensor radius."""
     bounds: tuple[float, ...] = ()
@@ -175,6 +184,18 @@ def check_agents(domain) -> None:
             check(other in names, f"agents[{c}].moves_with",
                   f"unknown class {other!r}{hint}; classes: {', '.join(names)}")  # fmt: skip
             check(other != agent.name, f"agents[{c}].moves_with", "a class cannot gate itself")
+        picking = agent.action in ("pick", "follow")
+        check(picking == bool(agent.picks), f"agents[{c}].picks",
+              'names the classes a "pick" or "follow" agent moves to, and only then '
+              f"(action {agent.action!r})")  # fmt: skip
+        for other in agent.picks:
+            check(other in names, f"agents[{c}].picks", f"unknown class {other!r}"
+                  f"{did_you_mean(other, names)}; classes: {', '.join(names)}")  # fmt: skip
+        if agent.action == "follow":
+            radius = getattr(agent.sensor or domain.sensor, "radius", math.inf)
+            check(math.isfinite(radius), f"agents[{c}].sensor",
+                  '"follow" moves to the nearest agent within the sensor radius: give the '
+                  "sensor a finite radius")  # fmt: skip
         if agent.moves_with and not agent.moves_with_radius:
             radius = getattr(agent.sensor or domain.sensor, "radius", math.inf)
             check(math.isfinite(radius), f"agents[{c}].moves_with_radius",

@@ -12,7 +12,9 @@ The conventions, each the lab's code as it runs (``src/influence/custom_env.py``
   are one ``[[agents]]`` class (``rover``, ``uav``; ``rover_1``, ``rover_2``, ... where a
   type needs several). Rovers count toward captures, UAVs do not and influence rovers
   within 5 (the lab's hard-coded influence radius). ``dxdy`` is ``action = "world"``
-  with the class's max speed (``ccea.network.{rover,uav}_max_velocity``), bounded to the
+  with the class's max speed (``ccea.network.{rover,uav}_max_velocity``), ``pick_uav``
+  ``action = "pick"`` (with the ``follow`` policy: ``"follow"``) picking the UAV classes
+  (``UavDistanceLidar`` is ``kind = "distances"`` to them), bounded to the
   map (``bounds``, default ``[0, map_size]``); ``needs_uav_to_move`` is ``moves_with =
   ["uav"]`` within the rover's observation radius.
 - *Sensors*: an agent's observation radius is its class's lidar radius (what capture by
@@ -117,9 +119,12 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
     """The lidar table of one lab agent (module docstring)."""
     sensor = agent.get("sensor") or {}
     kind = sensor.get("type", "SmartLidar")
+    if kind == "UavDistanceLidar":
+        radius = float(_get(agent, "observation_radius", where))
+        return {"kind": "distances", "classes": ["uav"], "radius": radius, "blind": True}
     if kind not in ("SmartLidar", "RoverLidar"):
-        raise ConfigError(f"{where}.sensor.type", f"physrover reads SmartLidar and RoverLidar,"
-                          f" not {kind!r} yet")  # fmt: skip
+        raise ConfigError(f"{where}.sensor.type", "SmartLidar, RoverLidar or UavDistanceLidar,"
+                          f" got {kind!r}")  # fmt: skip
     for key in ("observable_subtypes",):
         if agent.get(key):
             raise ConfigError(f"{where}.{key}", "POI subtypes are not in physrover yet")
@@ -165,13 +170,15 @@ def _agent_class(kind: str, agents: list[dict], first: int, lab: dict) -> dict[s
     bounds = agent.get("bounds") or {"low_x": 0.0, "high_x": map_x, "low_y": 0.0,
                                      "high_y": map_y}  # fmt: skip
     action = (agent.get("action") or {}).get("type", "dxdy")
-    if action != "dxdy":
-        raise ConfigError(f"{where}.action.type", f"physrover reads dxdy, not {action!r} yet")
+    if action not in ("dxdy", "pick_uav"):
+        raise ConfigError(f"{where}.action.type", f"dxdy or pick_uav, got {action!r}")
     policy = (agent.get("policy") or {}).get("type", "network")
-    if policy != "network":
-        raise ConfigError(f"{where}.policy.type", f"physrover reads network, not {policy!r} yet")
+    if policy not in ("network", "follow") or (policy == "follow" and action != "pick_uav"):
+        raise ConfigError(f"{where}.policy.type", f"network, or follow with pick_uav, got "
+                          f"{policy!r} with {action!r}")  # fmt: skip
+    ours = {"dxdy": "world", "pick_uav": "follow" if policy == "follow" else "pick"}[action]
     table: dict[str, Any] = {
-        "count": len(agents), "captures": kind == "rovers", "action": "world",
+        "count": len(agents), "captures": kind == "rovers", "action": ours,
         "max_speed": speed, "sensor": _sensor(agent, where),
         "bounds": [float(bounds[k]) for k in ("low_x", "high_x", "low_y", "high_y")],
         **_feedback(agent, where),
@@ -180,6 +187,8 @@ def _agent_class(kind: str, agents: list[dict], first: int, lab: dict) -> dict[s
         table["influence_radius"] = INFLUENCE_RADIUS
     if agent.get("needs_uav_to_move"):
         table["moves_with"] = ["uav"]
+    if action == "pick_uav":
+        table["picks"] = ["uav"]
     rule, value = _spawn(_get(agent, "position", where), f"{where}.position")
     table["spawn"] = rule
     if rule == "fixed":
@@ -213,9 +222,12 @@ def _classes(lab: dict) -> list[dict[str, Any]]:
             name = kind[:-1] if len(groups) == 1 else f"{kind[:-1]}_{j + 1}"
             tables.append({"name": name, **_agent_class(kind, group, first, lab)})
     uavs = [t["name"] for t in tables if not t["captures"]]
-    for table in tables:
-        if "moves_with" in table:
-            table["moves_with"] = uavs
+    for table in tables:  # the UAV classes' names, now known
+        for key in ("moves_with", "picks"):
+            if key in table:
+                table[key] = uavs
+        if table["sensor"]["kind"] == "distances":
+            table["sensor"]["classes"] = uavs
     return tables
 
 
@@ -378,6 +390,10 @@ def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
         learn["seed"] = int(seed)
     notes.append("scored states: the T + 1 positions here; the lab's training paths hold 3 "
                  "a step (raw, clamped to the agent's box, to the map)")  # fmt: skip
+    if any(a.action == "pick" for a in domain.agents):
+        notes.append("pick_uav: the lab's network has one output per UAV and one to stay "
+                     "and takes the largest; a policy here writes a number whose bin "
+                     "picks")  # fmt: skip
     radii = [a.sensor.radius for a in domain.agents]
     if any(p.sense_radius < max(radii) for p in domain.pois):
         notes.append("a POI's observation radius also limits who senses it here (the lab: "

@@ -169,7 +169,9 @@ def check_pois(domain) -> None:
         sensors = [(f"agents[{c}].sensor", a.sensor or domain.sensor)
                    for c, a in enumerate(domain.agents)] or [("sensor", domain.sensor)]  # fmt: skip
         for where, sensor in sensors:
-            aware = hasattr(sensor, "view") and hasattr(sensor, "observe_class")
+            aware = not getattr(sensor, "senses_pois", True) or (  # none to hide from it
+                hasattr(sensor, "view") and hasattr(sensor, "observe_class")
+            )
             check(aware, where,
                   f"{sensor.kind!r} cannot hide POIs (visible_to, sense_radius, disappear); "
                   'use kind = "lidar"')  # fmt: skip

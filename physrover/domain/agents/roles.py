@@ -10,7 +10,16 @@ it away). With roles, agent i's command ``a``, already clipped to [-1, 1], becom
 2. *speed*: ``a = max_speed * a`` (:func:`class_command`);
 3. *frame*: a body-frame agent moves as the paper's rover (``a`` in its own frame); a
    world-frame one by ``a`` itself; either way the heading turns to the move's direction
-   (:func:`class_command`, then :func:`physrover.domain.motion.ideal.ideal_move`);
+   (:func:`class_command`, then :func:`physrover.domain.motion.ideal.ideal_move`). A
+   *picking* agent (``action = "pick"`` or ``"follow"``, the lab's ``pick_uav`` action and
+   ``follow`` policy, ``ccea_lib.py`` ``evaluateTeamStatic``) moves instead by
+   ``clip(p_j - p_i, -max_speed, max_speed)`` per component towards one of the U agents
+   of its ``picks`` classes (in team order), judged on the positions before anyone moves
+   (:func:`pick_moves`), or stays: under ``"pick"`` its command's first component,
+   clipped to [-1, 1], picks target ``j = floor((a + 1) / 2 (U + 1))`` (U + 1 equal bins;
+   the last, and ``a = 1``, is "stay", the lab's extra output); under ``"follow"`` j is
+   the nearest within its sensor radius (ties: the lower index; none: stay); the gate of
+   step 1 still applies;
 4. *bounds*: the new position is clamped to its class's box (+-inf: none; idealised motion
    only, the config refuses bounds under physics).
 
@@ -27,6 +36,9 @@ import numpy as np
 
 from physrover.core.compiled import jit, jit_inline
 from physrover.domain.agents.classes import agent_classes, class_names, gate_radius
+
+PICK_MODES = ("", "pick", "follow")
+"""``Roles.pick_mode`` 1 and 2: the picking actions."""
 
 
 class Roles(NamedTuple):
@@ -46,6 +58,14 @@ class Roles(NamedTuple):
     """(R,) float64: how near, squared."""
     gated: np.ndarray
     """(R,) bool: agent i has a gate (``gate[i].any()``)."""
+    pick_mode: np.ndarray
+    """(R,) int64: 0 a command, 1 ``"pick"``, 2 ``"follow"``."""
+    pick_from: np.ndarray
+    """(R, C) bool: the classes agent i picks from (its ``picks``)."""
+    follow_radius_sq: np.ndarray
+    """(R,) float64: how near a followed agent must be, squared (the sensor's radius)."""
+    pick_move: np.ndarray
+    """(R, 2) float64 scratch: each picking agent's move this step (:func:`pick_moves`)."""
 
     @classmethod
     def build(cls, config) -> Roles | None:
@@ -63,9 +83,14 @@ class Roles(NamedTuple):
             "gate": [[n in c.moves_with for n in names] for c in classes],
             "gate_radius_sq": [gate_radius(c, config) ** 2 for c in classes],
             "gated": [bool(c.moves_with) for c in classes],
-        }
-        return cls(agent_class,
-                   **{k: np.array(v)[agent_class] for k, v in per_class.items()})  # fmt: skip
+            "pick_mode": [PICK_MODES.index(c.action) if c.action in PICK_MODES else 0
+                          for c in classes],
+            "pick_from": [[n in c.picks for n in names] for c in classes],
+            "follow_radius_sq": [float(getattr(c.sensor or config.sensor, "radius",
+                                               math.inf)) ** 2 for c in classes],
+        }  # fmt: skip
+        return cls(agent_class, **{k: np.array(v)[agent_class] for k, v in per_class.items()},
+                   pick_move=np.zeros((len(agent_class), 2)))  # fmt: skip
 
 
 @jit
@@ -88,6 +113,48 @@ def gate_free(e, positions, roles, free):
                     break
 
 
+@jit
+def pick_moves(e, positions, commands, roles):
+    """Write ``roles.pick_move[i]``, the move of each picking agent i of team e (module
+    docstring, step 3) from the (E, R, 2) ``positions`` before anyone moves and the (E, R,
+    2) ``commands`` (a ``"pick"`` agent's first component, clipped here)."""
+    n = positions.shape[1]
+    for i in range(n):
+        mode = roles.pick_mode[i]
+        if mode == 0:
+            continue
+        xi, yi = positions[e, i, 0], positions[e, i, 1]
+        target = -1
+        if mode == 1:
+            n_targets = 0
+            for j in range(n):
+                n_targets += roles.pick_from[i, roles.agent_class[j]]
+            a = min(max(np.float64(commands[e, i, 0]), -1.0), 1.0)
+            choice = min(int((a + 1.0) * 0.5 * (n_targets + 1)), n_targets)
+            for j in range(n):
+                if roles.pick_from[i, roles.agent_class[j]]:
+                    if choice == 0:
+                        target = j
+                        break
+                    choice -= 1
+        else:
+            best = roles.follow_radius_sq[i]
+            for j in range(n):
+                if j != i and roles.pick_from[i, roles.agent_class[j]]:
+                    dx = positions[e, j, 0] - xi
+                    dy = positions[e, j, 1] - yi
+                    d2 = dx * dx + dy * dy
+                    if d2 <= best and (target < 0 or d2 < best):
+                        best, target = d2, j
+        mx = my = 0.0
+        if target >= 0:
+            v = roles.speed[i]
+            mx = min(max(positions[e, target, 0] - xi, -v), v)
+            my = min(max(positions[e, target, 1] - yi, -v), v)
+        roles.pick_move[i, 0] = mx
+        roles.pick_move[i, 1] = my
+
+
 @jit_inline
 def class_command(i, fwd, left, free, roles, cos_h, sin_h):
     """Agent i's clipped command (fwd, left) after its gate (``free``, :func:`gate_free`)
@@ -95,10 +162,14 @@ def class_command(i, fwd, left, free, roles, cos_h, sin_h):
     cos, sin)``, the frame its heading's (``cos_h``, ``sin_h``) or the world's (1, 0: no
     turn), as the idealised move (:func:`physrover.domain.motion.ideal.ideal_move`) takes
     them."""
+    if roles.pick_mode[i] != 0:  # its move is pick_moves'
+        if not free[i]:
+            return 0.0, 0.0, 1.0, 0.0
+        return roles.pick_move[i, 0], roles.pick_move[i, 1], 1.0, 0.0
     scale = roles.speed[i] if free[i] else 0.0
     if roles.world_frame[i]:
         return fwd * scale, left * scale, 1.0, 0.0
     return fwd * scale, left * scale, cos_h, sin_h
 
 
-__all__ = ["Roles", "class_command", "gate_free"]
+__all__ = ["PICK_MODES", "Roles", "class_command", "gate_free", "pick_moves"]

@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from physrover.core.compiled import jit
-from physrover.domain.agents.roles import class_command, gate_free
+from physrover.domain.agents.roles import class_command, gate_free, pick_moves
 
 
 @jit
@@ -87,6 +87,7 @@ def move_team(e, commands, state, actions, headings, roles, free):
     cos_h, sin_h = state.cos_h, state.sin_h
     if roles is not None:
         gate_free(e, positions, roles, free)
+        pick_moves(e, positions, commands, roles)
     for i in range(angles.shape[1]):
         fwd = clip(commands[e, i, 0])
         left = clip(commands[e, i, 1])

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from physrover.core.compiled import jit
-from physrover.domain.agents.roles import class_command, gate_free
+from physrover.domain.agents.roles import class_command, gate_free, pick_moves
 from physrover.domain.motion.contacts import contact_sweeps, speculative_contacts
 from physrover.domain.motion.ideal import ideal_move
 
@@ -51,6 +51,7 @@ def setpoints(actions, positions, headings, cos_h, sin_h, max_speed, roles, targ
     for e in range(headings.shape[0]):
         if roles is not None:
             gate_free(e, positions, roles, free)
+            pick_moves(e, positions, actions, roles)
         for i in range(headings.shape[1]):
             fwd, left = actions[e, i, 0], actions[e, i, 1]
             c, s = cos_h[e, i], sin_h[e, i]

@@ -12,6 +12,9 @@ A team senses through one of two compiled paths (:mod:`physrover.domain.plan` pi
   with ``compose = "density"``, the inverse-square measure, heading bearing and ``empty =
   0``, which is that sensor bit for bit (its all-pairs sums).
 
+A class that senses distances to agents (:mod:`physrover.domain.sensing.distances`, the
+lab's UavDistanceLidar) is a row too, read by :func:`sense_distances` instead.
+
 A class whose sensor is neither built-in (a user's sensor, or a subclass of a built-in) is
 left out of the table (``compiled`` False) and observed from Python after the step.
 
@@ -37,6 +40,7 @@ from physrover.core.compiled import jit, jit_inline
 from physrover.domain.agents.classes import class_rows, class_sensor
 from physrover.domain.broadphase import grid
 from physrover.domain.sensing.density import Density
+from physrover.domain.sensing.distances import AgentDistances, sense_distances
 from physrover.domain.sensing.lidar import COMPOSE, MEASURES, Lidar, SensingView, lidar_agent
 from physrover.domain.sensing.sensor import sensor_size
 
@@ -91,6 +95,11 @@ class ClassSensing(NamedTuple):
     """(C,) int64: the class's observation size."""
     local: np.ndarray
     """(C,) bool: the class finds its neighbours from the grid."""
+    distances: np.ndarray
+    """(C,) bool: the class senses distances to agents (:mod:`physrover.domain.sensing.
+    distances`), of the agents ``targets[c]`` within ``sqrt(radius_sq[c])``."""
+    targets: np.ndarray
+    """(C, R) bool: the agents a distances class measures."""
     cell: float
     """The grid's cell side (world units): the smallest radius of a local class; 0: none."""
     max_channels: int
@@ -109,6 +118,9 @@ class ClassSensing(NamedTuple):
             if kind is Lidar:
                 view = sensor.view(config, c)
                 lidar = sensor
+            elif kind is AgentDistances:  # its radius; the other lidar fields unused
+                lidar = Lidar(radius=sensor.radius)
+                view = SensingView.everything(n, k, lidar.sectors)
             else:  # the density sensor as a lidar (module docstring); a placeholder row for
                 # a Python sensor, which the table leaves out (compiled False)
                 lidar = Lidar(sectors=sensor.sectors, radius=sensor.radius) if kind is Density \
@@ -116,14 +128,19 @@ class ClassSensing(NamedTuple):
                 view = SensingView.everything(n, k, lidar.sectors)
             radius_sq = lidar.radius**2 if math.isfinite(lidar.radius) else math.inf
             values = {
-                "first": row.start, "stop": row.stop, "compiled": kind in (Lidar, Density),
+                "first": row.start, "stop": row.stop,
+                "compiled": kind in (Lidar, Density, AgentDistances),
                 "n_sectors": lidar.sectors, "radius_sq": radius_sq,
                 "compose": COMPOSE.index(lidar.compose), "measure": MEASURES.index(lidar.measure),
                 "empty": lidar.empty, "world": lidar.bearing == "world",
                 "agent_base": view.agent_base, "poi_base": view.poi_base,
                 "visible": view.visible, "poi_radius_sq": view.poi_radius_sq,
                 "disappear": view.disappear, "n_channels": sensor_size(sensor, config),
-                "local": n >= LIDAR_GRID_MIN_POINTS and math.isfinite(lidar.radius),
+                "local": (n >= LIDAR_GRID_MIN_POINTS and math.isfinite(lidar.radius)
+                          and kind is not AgentDistances),
+                "distances": kind is AgentDistances,
+                "targets": sensor.targets(config) if kind is AgentDistances
+                else np.zeros(n, dtype=bool),
             }  # fmt: skip
             for name, value in values.items():
                 table[name].append(value)
@@ -142,6 +159,8 @@ class ClassSensing(NamedTuple):
             "visible": bool,
             "disappear": bool,
             "local": bool,
+            "distances": bool,
+            "targets": bool,
             "radius_sq": float,
             "empty": float,
             "poi_radius_sq": float,
@@ -224,6 +243,13 @@ def sense_classes(e, state, sensing, obs, scratch):
             if sensing.local[c]
             else np.int64(0)
         )
+        if sensing.distances[c]:
+            radius = math.sqrt(sensing.radius_sq[c])
+            for i in range(sensing.first[c], sensing.stop[c]):
+                for q in range(sense_distances(e, i, state.rover_positions, sensing.targets[c],
+                                               radius, obs), width):  # fmt: skip
+                    obs[e, i, q] = 0.0
+            continue
         for i in range(sensing.first[c], sensing.stop[c]):
             n_near = (
                 _near(i, cells, nx, ny, starts, members, reach, near) if sensing.local[c] else -1
