@@ -187,3 +187,32 @@ def test_bad_picks_name_the_field(change, message):
     with pytest.raises(ConfigError, match='"follow" moves to the nearest agent within the s'):
         domain.replace(agents=[{**domain.agents[0].table(), "action": "follow",
                                 "sensor": {"kind": "lidar"}}, domain.agents[1]])  # fmt: skip
+
+
+def test_a_pick_policy_plays_its_largest_output_as_the_lab_does():
+    """The CCEA's policies of a picking class: U + 1 outputs, the largest picks (a plain
+    numpy forward and argmax, the lab's ``NeuralNetwork`` then ``np.argmax``), written as
+    its bin's centre, which the world decodes back to the same pick."""
+    from physrover.learn.classes import team_layout
+
+    domain = DomainConfig.from_toml(TEAM.format(action="pick", steps=3, motion="ideal"))
+    layout = team_layout(6, domain)
+    rover = layout.layouts[0]
+    assert (rover.n_out, rover.n_in) == (3, 2)  # 2 UAVs + stay; one distance per UAV
+    rng = np.random.default_rng(0)
+    genomes = layout.init((4, 7), rng)[:, rng.integers(0, 7, 4)].transpose(1, 0, 2)  # (E, R, P)
+    genomes = np.ascontiguousarray(genomes * 4.0)  # wide weights: every choice comes up
+    obs = rng.uniform(-1, 1, (4, 4, layout.n_in)).astype(np.float32)
+    out = layout.act(genomes, obs)
+    picks = []
+    for e in range(4):
+        for r in range(2):
+            g = genomes[e, r]
+            w1 = g[:12].reshape(2, 6)
+            b1, w2, b2 = g[12:18], g[18:36].reshape(6, 3), g[36:39]
+            h = np.maximum(obs[e, r, :2] @ w1 + b1, 0)
+            choice = int(np.argmax(h @ w2 + b2))
+            assert out[e, r].tolist() == pytest.approx([-1 + (2 * choice + 1) / 3, 0.0])
+            assert min(int((out[e, r, 0] + 1) / 2 * 3), 2) == choice  # the world's bin
+            picks.append(choice)
+    assert set(picks) == {0, 1, 2}

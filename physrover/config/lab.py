@@ -390,10 +390,6 @@ def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
         learn["seed"] = int(seed)
     notes.append("scored states: the T + 1 positions here; the lab's training paths hold 3 "
                  "a step (raw, clamped to the agent's box, to the map)")  # fmt: skip
-    if any(a.action == "pick" for a in domain.agents):
-        notes.append("pick_uav: the lab's network has one output per UAV and one to stay "
-                     "and takes the largest; a policy here writes a number whose bin "
-                     "picks")  # fmt: skip
     radii = [a.sensor.radius for a in domain.agents]
     if any(p.sense_radius < max(radii) for p in domain.pois):
         notes.append("a POI's observation radius also limits who senses it here (the lab: "

@@ -1,7 +1,8 @@
 """Policies of a team of agent classes (``[[agents]]``, :mod:`physrover.config.agents`).
 
 Every agent keeps its own population, as in the paper; an agent's policies have its
-class's shape, ``n_in_c -> hidden -> 2`` with ``n_in_c`` its class's sensor size
+class's shape, ``n_in_c -> hidden -> 2`` with ``n_in_c`` its class's sensor size (``U +
+1`` outputs for a picking class, :func:`pick_choices`)
 (:class:`~physrover.learn.policies.PolicyLayout`). The populations stay one (R, k, P)
 array, P the largest class's genome, a smaller class's genomes in the first P_c entries
 (the rest are never read: evolution mutates them, harmlessly). The world's observations
@@ -31,7 +32,8 @@ class ClassLayouts:
     def __init__(self, hidden: int, domain):
         self.rows = class_rows(domain)
         dims = [sensor_size(c.sensor or domain.sensor, domain) for c in domain.agents]
-        self.layouts = [PolicyLayout(hidden, d) for d in dims]
+        outs = [pick_choices(c, domain) if c.action == "pick" else 2 for c in domain.agents]
+        self.layouts = [PolicyLayout(hidden, d, n) for d, n in zip(dims, outs, strict=True)]
         self.hidden = hidden
         self.n_in = max(dims)
         self.size = max(layout.size for layout in self.layouts)
@@ -73,6 +75,12 @@ class MixedTeamPolicy:
         return out
 
 
+def pick_choices(agent_class, domain) -> int:
+    """A picking class's policy outputs: one per agent of its ``picks`` classes, one to stay
+    (the lab's ``num_uavs + 1``)."""
+    return 1 + sum(c.count for c in domain.agents if c.name in agent_class.picks)
+
+
 def team_layout(hidden: int, domain) -> PolicyLayout | ClassLayouts:
     """The policies' layout of ``domain``'s team (module docstring)."""
     if not domain.agents:
@@ -80,4 +88,4 @@ def team_layout(hidden: int, domain) -> PolicyLayout | ClassLayouts:
     return ClassLayouts(hidden, domain)
 
 
-__all__ = ["ClassLayouts", "MixedTeamPolicy", "team_layout"]
+__all__ = ["ClassLayouts", "MixedTeamPolicy", "pick_choices", "team_layout"]

@@ -97,6 +97,55 @@ def forward_team(genomes, hidden, obs, out, dims, h):
 
 
 @jit
+def pick_forward(genomes, hidden, n_choices, obs, out):
+    """The commands ``out`` (E, R, 2) float32 of picking agents (``action = "pick"``): agent
+    r of team e plays genome ``genomes[e, r]`` (``W1 (n_in x H) | b1 | W2 (H x n_choices) |
+    b2``) on ``obs[e, r]`` (n_in,) float32, a ReLU hidden layer, then ``n_choices`` linear
+    outputs (each ``b2`` plus its hidden units in order); the largest (the first of ties; the
+    lab's softmax and argmax) picks j, written as the centre of pick bin j of [-1, 1],
+    ``-1 + (2 j + 1) / n_choices`` (:func:`physrover.domain.agents.roles.pick_moves`), and 0."""
+    n_in = obs.shape[2]
+    b1_at = n_in * hidden
+    w2_at = b1_at + hidden
+    b2_at = w2_at + hidden * n_choices
+    h = np.empty(hidden, np.float32)
+    for e in range(genomes.shape[0]):
+        for r in range(genomes.shape[1]):
+            g = genomes[e, r]
+            for u in range(hidden):
+                a = g[b1_at + u]
+                for i in range(n_in):
+                    a += obs[e, r, i] * g[i * hidden + u]
+                h[u] = max(a, np.float32(0.0))
+            best, choice = np.float32(-np.inf), 0
+            for j in range(n_choices):
+                z = g[b2_at + j]
+                for u in range(hidden):
+                    z += h[u] * g[w2_at + u * n_choices + j]
+                if z > best:
+                    best, choice = z, j
+            out[e, r, 0] = np.float32(-1.0 + (2.0 * choice + 1.0) / n_choices)
+            out[e, r, 1] = np.float32(0.0)
+
+
+class PickPolicy:
+    """Fixed genomes of picking agents as a policy ``obs (E, R, n_in) -> commands (E, R,
+    2)`` (:func:`pick_forward`)."""
+
+    def __init__(self, genomes: np.ndarray, hidden: int, n_in: int, n_choices: int):
+        self.genomes = np.ascontiguousarray(genomes, dtype=np.float32)
+        self.hidden, self.n_in, self.n_choices = int(hidden), int(n_in), int(n_choices)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.ascontiguousarray(obs, dtype=np.float32)
+        if obs.shape[-1] != self.n_in:
+            raise ValueError(f"observations must have {self.n_in} inputs, got {obs.shape}")
+        out = np.empty((*self.genomes.shape[:-1], 2), dtype=np.float32)
+        pick_forward(self.genomes, self.hidden, self.n_choices, obs, out)
+        return out
+
+
+@jit
 def policy_forward(genomes, hidden, obs, out, dims):
     """Actions of every rover of every team: genomes (E, R, P) float32, obs (E, R, n_in)
     float32, out (E, R, 2) float32 written with :func:`forward_team`, team by team."""

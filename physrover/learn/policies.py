@@ -25,12 +25,14 @@ class PolicyLayout:
 
     ``n_in`` is the sensor's observation size (8 for the paper's), ``n_out`` the action size
     (2); the compiled forward pass (:func:`physrover.learn.forward.policy_forward`) takes
-    any ``n_in`` and 2 outputs.
+    any ``n_in`` and 2 outputs. A picking agent's policy (``action = "pick"``, the lab's
+    ``pick_uav``) has ``n_out = U + 1`` outputs, one per agent it may pick and one to stay,
+    and plays the largest (:func:`physrover.learn.forward.pick_forward`).
     """
 
     def __init__(self, hidden: int, n_in: int, n_out: int = 2):
-        if n_out != 2:
-            raise ValueError(f"policies have 2 outputs (the rover's command), got {n_out}")
+        if n_out < 2:
+            raise ValueError(f"policies have at least 2 outputs, got {n_out}")
         self.n_in, self.hidden, self.n_out = n_in, hidden, n_out
         sizes = [n_in * hidden, hidden, hidden * n_out, n_out]
         self.bounds = np.concatenate([[0], np.cumsum(sizes)])
@@ -52,11 +54,14 @@ class PolicyLayout:
         genomes, for the steps of an episode (the genomes are laid out once); a
         :class:`~physrover.learn.rollout.TeamPolicy`, which a compiled world plays as one
         compiled episode."""
+        from physrover.learn.forward import PickPolicy
         from physrover.learn.rollout import TeamPolicy
 
         genomes = np.asarray(genomes)
         if genomes.shape[-1] != self.size:
             raise ValueError(f"genomes must have {self.size} parameters, got {genomes.shape[-1]}")
+        if self.n_out != 2:
+            return PickPolicy(genomes, self.hidden, self.n_in, self.n_out)
         return TeamPolicy(genomes, self.hidden, self.n_in)
 
     def act(self, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:

@@ -96,8 +96,9 @@ class ClassSensing(NamedTuple):
     local: np.ndarray
     """(C,) bool: the class finds its neighbours from the grid."""
     distances: np.ndarray
-    """(C,) bool: the class senses distances to agents (:mod:`physrover.domain.sensing.
-    distances`), of the agents ``targets[c]`` within ``sqrt(radius_sq[c])``."""
+    """(C,) bool: the class senses distances to agents
+    (:mod:`physrover.domain.sensing.distances`), of the agents ``targets[c]`` within
+    ``sqrt(radius_sq[c])``."""
     targets: np.ndarray
     """(C, R) bool: the agents a distances class measures."""
     cell: float
