@@ -68,8 +68,44 @@ def test_linear_measure_and_radius():
     obs = _scan([(0, 0), (2, 0), (4.5, 0)], measure="linear", radius=4.0)
     assert obs[2] == pytest.approx(0.5)  # 1 - 2/4; the rover at 4.5 is beyond the radius
     assert _scan([(0, 0), (4, 0)], measure="linear", radius=4.0, empty=-1.0)[2] == 0.0
-    with pytest.raises(ConfigError, match='measure: "linear" is 1 - d / radius'):
+    with pytest.raises(ConfigError, match='measure: "linear" divides by the radius'):
         Lidar(measure="linear")
+    with pytest.raises(ConfigError, match='measure: "ratio" divides by the radius'):
+        Lidar(measure="ratio")
+
+
+def _lab_measure(mtype, distance, observation_radius):
+    """``SmartLidar::measure`` as the lab writes it (``lidar.hpp``)."""
+    if mtype == "inverse_distance_squared":
+        return 1.0 / max(0.001, distance * distance)
+    elif mtype == "exponential_negative_distance":
+        return math.exp(-distance)
+    elif mtype == "inverse_distance":
+        return 1.0 / max(0.001, distance)
+    elif mtype == "distance_over_observation_radius":
+        return distance / observation_radius
+    elif mtype == "one_minus_inverse_distance_over_observation_radius":
+        return 1.0 - distance / observation_radius
+    raise ValueError(mtype)
+
+
+@pytest.mark.parametrize(("ours", "lab"), [
+    ("inverse-square", "inverse_distance_squared"), ("linear",
+     "one_minus_inverse_distance_over_observation_radius"), ("inverse", "inverse_distance"),
+    ("exponential", "exponential_negative_distance"), ("ratio",
+     "distance_over_observation_radius")])  # fmt: skip
+def test_every_measure_is_the_labs(ours, lab):
+    """One rover and one POI of value 2 at random distances (beyond the floors, ours d_min
+    = 1 here and the lab's 0.001), each alone in its sector: its term is the lab's measure
+    (times the POI's value), world bearings."""
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        d_rover, d_poi = rng.uniform(1.0, 6.0, 2)
+        obs = _scan([(0, 0), (d_rover, 0.0)], pois=[(-d_poi, -0.001)], values=(2.0,),
+                    measure=ours, radius=6.0, bearing="world")  # fmt: skip
+        assert obs[0] == pytest.approx(_lab_measure(lab, d_rover, 6.0), rel=1e-6)  # float32
+        assert obs[4 + 2] == pytest.approx(2.0 * _lab_measure(lab, np.hypot(d_poi, 0.001),
+                                                              6.0), rel=1e-6)  # fmt: skip
 
 
 @pytest.mark.parametrize("sectors", [4, 6])

@@ -66,7 +66,9 @@ LAB_STEP_CREDITS = {"AllOrNothing": "ID-step", "Local": "ID-step-local",
                     "System": "ID-step-system", "Difference": "ID-step-difference"}  # fmt: skip
 LAB_ACCUM = {"sum": "density", "average": "average"}
 LAB_MEASURES = {"inverse_distance_squared": "inverse-square",
-                "one_minus_inverse_distance_over_observation_radius": "linear"}  # fmt: skip
+                "one_minus_inverse_distance_over_observation_radius": "linear",
+                "inverse_distance": "inverse", "exponential_negative_distance": "exponential",
+                "distance_over_observation_radius": "ratio"}  # fmt: skip
 LAB_CONSTRAINTS = {"final": "final", "sequential": "any"}
 
 

@@ -10,6 +10,10 @@ observations, as the density sensor's). An object at distance d adds a *term*:
   ``inverse_distance_squared`` with our ``d_min`` for its floor of 0.001 on d^2);
 - ``measure = "linear"``: ``num (1 - d / radius)`` (the lab's
   ``one_minus_inverse_distance_over_observation_radius``; needs a finite radius);
+- ``"inverse"``: ``num / max(d, d_min)`` (the lab's ``inverse_distance``, whose floor is
+  0.001 where ours is ``d_min``); ``"exponential"``: ``num exp(-d)`` (its
+  ``exponential_negative_distance``); ``"ratio"``: ``num d / radius`` (its
+  ``distance_over_observation_radius``; a finite radius);
 
 with ``num`` 1 for a rover and V_k for POI k. A sector's channel *composes* its terms:
 
@@ -55,7 +59,7 @@ from physrover.domain.sensing.sensor import Sensor, register_sensor
 
 COMPOSE = ("density", "average", "closest")
 CHANNELS = ("agents-pois", "by-class")
-MEASURES = ("inverse-square", "linear")
+MEASURES = ("inverse-square", "linear", "inverse", "exponential", "ratio")
 BEARINGS = ("heading", "world")
 
 
@@ -73,8 +77,9 @@ class Lidar(Sensor):
     compose: str = "density"
     """How a sector's terms make its reading: "density" (sum), "average" or "closest"."""
     measure: str = "inverse-square"
-    """An object's term: "inverse-square" (num / max(d^2, d_min^2)) or "linear"
-    (num (1 - d / radius))."""
+    """An object's term: "inverse-square" (num / max(d^2, d_min^2)), "linear"
+    (num (1 - d / radius)), "inverse" (num / max(d, d_min)), "exponential" (num exp(-d)) or
+    "ratio" (num d / radius)."""
     empty: float = 0.0
     """The reading of a sector with no object in it (the lab's default: -1)."""
     bearing: str = "heading"
@@ -91,8 +96,8 @@ class Lidar(Sensor):
         check_choice(self.measure, MEASURES, "measure")
         check_choice(self.bearing, BEARINGS, "bearing")
         check_choice(self.channels, CHANNELS, "channels")
-        check(self.measure != "linear" or math.isfinite(self.radius), "measure",
-              '"linear" is 1 - d / radius: give a finite radius')  # fmt: skip
+        check(self.measure not in ("linear", "ratio") or math.isfinite(self.radius), "measure",
+              f'"{self.measure}" divides by the radius: give a finite radius')  # fmt: skip
         check(math.isfinite(self.empty), "empty", f"must be finite, got {self.empty}")
 
     @property
@@ -177,12 +182,18 @@ class SensingView(NamedTuple):
 
 @jit_inline
 def _add(acc, count, q, num, dist_sq, d_min_sq, radius_sq, measure, compose):
-    """An object's term (``measure``: Eq. 14's inverse square, or linear) composed into
-    channel q (a sum, or the largest term under "closest")."""
+    """An object's term (``measure``: an index into :data:`MEASURES`) composed into channel
+    q (a sum, or the largest term under "closest")."""
     if measure == 0:
         term = num / max(dist_sq, d_min_sq)  # Eq. 14
-    else:
+    elif measure == 1:
         term = num * (1.0 - math.sqrt(dist_sq) / math.sqrt(radius_sq))
+    elif measure == 2:
+        term = num / math.sqrt(max(dist_sq, d_min_sq))
+    elif measure == 3:
+        term = num * math.exp(-math.sqrt(dist_sq))
+    else:
+        term = num * (math.sqrt(dist_sq) / math.sqrt(radius_sq))
     if compose == 2:
         acc[q] = max(acc[q], term) if count[q] > 0 else term
     else:
