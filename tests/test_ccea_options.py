@@ -18,7 +18,7 @@ from physrover.experiment.training import train
 from physrover.learn.ccea import CCEA
 from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.team_elites import TeamElites
-from physrover.learn.teams import softmax_teams
+from physrover.learn.teams import rank_teams, softmax_teams
 
 FITNESS = [0.0, 1.0, 2.5, 0.5]
 
@@ -195,6 +195,29 @@ def test_resume_with_softmax_and_elites_is_bit_identical(tmp_path):
     assert_same_run(full, part)
 
 
+def test_rank_teams_zip_each_population_sorted_as_the_lab_does():
+    """The lab's ``form_shaped_teams``, written as it is: each population sorted by shaped
+    fitness (None as 0), largest first, and zipped into teams."""
+    rng = np.random.default_rng(0)
+    fitness = rng.integers(0, 4, (3, 6)).astype(float)  # ties on purpose
+    fitness[1, 2] = np.nan  # a mutated copy, not yet scored
+    order = rank_teams(fitness, rounds=2)
+    assert order.shape == (2, 3, 6) and (order[0] == order[1]).all()
+    pops = [[(p, None if np.isnan(f) else f) for p, f in enumerate(row)] for row in fitness]
+    sorted_pops = [sorted(pop, key=lambda ind: ind[1] if ind[1] is not None else 0,
+                          reverse=True) for pop in pops]  # fmt: skip
+    teams = [[pop[i][0] for pop in sorted_pops] for i in range(6)]
+    assert order[0].T.tolist() == teams  # order[q, r, m]: rover r's policy in team m
+    ccea = CCEA(RunConfig().with_overrides({**EASY, "method": "D", "team_formation": "rank"}))
+    ccea.run_generation()
+    played, rollout = [], ccea.rollout
+    ccea.rollout = lambda index: played.append(index.copy()) or rollout(index)
+    expected = rank_teams(ccea.carried, 1)[0].T  # (team, rover): by last generation's fitness
+    assert not np.isnan(ccea.carried).all() and len(set(expected[:, 0])) > 1
+    ccea.run_generation()
+    np.testing.assert_array_equal(played[0][: ccea.k], expected)
+
+
 ELITES = {"selection": "elites"}
 SOFTMAX = {"team_formation": "softmax"}
 
@@ -202,7 +225,8 @@ SOFTMAX = {"team_formation": "softmax"}
 @pytest.mark.parametrize(
     ("fields", "message"),
     [
-        ({"team_formation": "greedy"}, "team_formation: must be one of random, softmax"),
+        ({"team_formation": "greedy"}, "team_formation: must be one of random, softmax, rank"),
+        ({"team_formation": "rank", "method": "hall-of-fame"}, "rank needs a method with"),
         ({"selection": "elite"}, "selection: must be one of tournament, elites; got 'elite'"),
         ({"mutation": "normal"}, "mutation: must be one of cauchy, gauss"),
         ({"softmax_temperature": 2.0}, 'temperature: configures team_formation = "softmax"'),

@@ -83,8 +83,8 @@ def _with(path: str, value) -> dict:
      "env.pois.hidden_pois[0].constraint: final or sequential, got 'eventually'"),
     ("ccea.network.hidden_layers", [15, 15],
      "ccea.network.hidden_layers: physrover's policies have one hidden layer"),
-    ("ccea.team_formation", {"type": "fixed_teams"},
-     "ccea.team_formation.type: physrover forms random_teams or softmax_teams"),
+    ("ccea.team_formation", {"type": "greedy_teams"},
+     "ccea.team_formation.type: random_teams, softmax_teams or fixed_teams, got"),
     ("ccea.evaluation.multi_rollout.num_rollouts", 3,
      "ccea.evaluation.multi_rollout.num_rollouts: physrover plays one episode"),
 ])  # fmt: skip

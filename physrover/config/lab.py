@@ -351,10 +351,10 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
                           "n_individual_elites_based_on_team_fitness",
                           "elites by team fitness are not in physrover yet")  # fmt: skip
     formation = (ccea.get("team_formation") or {}).get("type", "random_teams")
-    formations = {"random_teams": "random", "softmax_teams": "softmax"}
+    formations = {"random_teams": "random", "softmax_teams": "softmax", "fixed_teams": "rank"}
     if formation not in formations:
-        raise ConfigError("ccea.team_formation.type", f"physrover forms random_teams or "
-                          f"softmax_teams, not {formation!r} yet")  # fmt: skip
+        raise ConfigError("ccea.team_formation.type", f"random_teams, softmax_teams or "
+                          f"fixed_teams, got {formation!r}")  # fmt: skip
     rollouts = int(ccea.get("evaluation", {}).get("multi_rollout", {}).get("num_rollouts", 1))
     if rollouts != 1:
         raise ConfigError("ccea.evaluation.multi_rollout.num_rollouts", "physrover plays one "
@@ -380,9 +380,9 @@ def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
     ``ccea``), and notes on what physrover does otherwise. The CCEA: ``[learn] method =
     "D"`` (a policy's fitness is its feedback in one episode: the lab's one rollout), each
     class's own feedback, Gaussian mutation, the lab's elites selection and team elites,
-    random or softmax teams (temperature 1), one evaluation episode; ``num_trials`` trials
-    are seeds (``physrover sweep``). Refused: more hidden layers, a mutation mean, elites by
-    team fitness, fixed teams, several rollouts per team."""
+    random, softmax (temperature 1) or ranked (``fixed_teams``) teams, one evaluation
+    episode; ``num_trials`` trials are seeds (``physrover sweep``). Refused: more hidden layers, a mutation mean, elites by
+    team fitness, several rollouts per team."""
     notes: list[str] = []
     domain = lab_domain(lab)
     learn = _learn(lab["ccea"], notes)

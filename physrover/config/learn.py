@@ -53,9 +53,11 @@ class LearnConfig(ConfigBase):
     ``mutation_rate = 0.5`` and ``mutation_scale = 0.1``)."""
     team_formation: str = "random"
     """How each round's teams are formed: "random" (a fresh permutation of every population,
-    the paper's) or "softmax" (the lab's later code: teams drawn in turn, each member by a
+    the paper's), "softmax" (the lab's later code: teams drawn in turn, each member by a
     softmax over its population's fitness at ``softmax_temperature`` among those not yet
-    drawn, so good policies tend to play together; :mod:`physrover.learn.teams`)."""
+    drawn, so good policies tend to play together) or "rank" (the lab's ``fixed_teams``:
+    each population sorted by fitness, the best of each in team 0, the second in team 1,
+    ...; :mod:`physrover.learn.teams`)."""
     softmax_temperature: float = 1.0
     """Temperature of softmax team formation (the lab's is 1, in fitness units)."""
     selection: str = "tournament"
@@ -136,7 +138,7 @@ class LearnConfig(ConfigBase):
     def _check_ccea_options(self) -> None:
         """The CCEA's team formation, selection and mutation options."""
         check_choice(self.mutation, ("cauchy", "gauss"), "mutation")
-        check_choice(self.team_formation, ("random", "softmax"), "team_formation")
+        check_choice(self.team_formation, ("random", "softmax", "rank"), "team_formation")
         check_choice(self.selection, ("tournament", "elites"), "selection")
         check(
             self.softmax_temperature > 0 and math.isfinite(self.softmax_temperature),
@@ -152,7 +154,8 @@ class LearnConfig(ConfigBase):
         check(
             self.team_formation == "random" or not getattr(spec, "plans_teams", False),
             "team_formation",
-            f"{self.method!r} plans its own teams; softmax needs a method with random teams",
+            f"{self.method!r} plans its own teams; {self.team_formation} needs a method with "
+            "random teams",
         )
         if self.selection != "elites":
             for name in ("n_individual_elites", "n_team_elites"):

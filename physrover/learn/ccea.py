@@ -48,7 +48,7 @@ from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.fitness import Problem, make_method
 from physrover.learn.kernels import gather_trajectories
 from physrover.learn.team_elites import TeamElites
-from physrover.learn.teams import softmax_teams
+from physrover.learn.teams import rank_teams, softmax_teams
 
 
 @dataclass(frozen=True)
@@ -181,6 +181,8 @@ class CCEA:
         # order[q, r, m]: the policy of rover r in team m of round q.
         if cfg.team_formation == "softmax":
             order = softmax_teams(self.team_rng, self.carried, rounds, cfg.softmax_temperature)
+        elif cfg.team_formation == "rank":
+            order = rank_teams(self.carried, rounds)
         else:
             order = self.method.plan(self.team_rng, R, k)
         team_index = order.transpose(0, 2, 1).reshape(rounds * k, R)

@@ -3,7 +3,8 @@
 A generation's round is a permutation of every population: ``order[q, r, m]`` is the policy of
 rover r in team m of round q, so every policy plays exactly once per round. The paper draws the
 permutations uniformly (:meth:`physrover.learn.fitness.FitnessMethod.plan`, the default);
-:func:`softmax_teams` is the later lab code's ``form_softmax_teams``.
+:func:`softmax_teams` is the later lab code's ``form_softmax_teams``, :func:`rank_teams` its
+``form_shaped_teams`` (``fixed_teams``).
 """
 
 from __future__ import annotations
@@ -36,3 +37,14 @@ def softmax_teams(
     f = np.nan_to_num(np.asarray(fitness, dtype=np.float64), nan=0.0) / temperature
     keys = f[None] + rng.gumbel(size=(rounds, *f.shape))
     return np.argsort(-keys, axis=-1, kind="stable")
+
+
+def rank_teams(fitness: np.ndarray, rounds: int) -> np.ndarray:
+    """(rounds, R, k) team orders by rank: team m takes the m-th best policy of every
+    population (the lab's ``form_shaped_teams``: each population sorted by its fitness,
+    largest first, ties in population order, as Python's stable ``sorted(reverse=True)``;
+    NaN, a policy not yet scored, counts as 0, the lab's ``None``). Every round is the
+    same order."""
+    f = np.nan_to_num(np.asarray(fitness, dtype=np.float64), nan=0.0)
+    order = np.argsort(-f, axis=-1, kind="stable")
+    return np.broadcast_to(order, (rounds, *order.shape)).copy()
