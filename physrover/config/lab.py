@@ -381,8 +381,8 @@ def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
     "D"`` (a policy's fitness is its feedback in one episode: the lab's one rollout), each
     class's own feedback, Gaussian mutation, the lab's elites selection and team elites,
     random, softmax (temperature 1) or ranked (``fixed_teams``) teams, one evaluation
-    episode; ``num_trials`` trials are seeds (``physrover sweep``). Refused: more hidden layers, a mutation mean, elites by
-    team fitness, several rollouts per team."""
+    episode; ``num_trials`` trials are seeds (``physrover sweep``). Refused: more hidden
+    layers, a mutation mean, elites by team fitness, several rollouts per team."""
     notes: list[str] = []
     domain = lab_domain(lab)
     learn = _learn(lab["ccea"], notes)
