@@ -384,3 +384,15 @@ def test_agents_that_do_not_capture_wear_a_diamond():
         top = frame[y - 2 * ROVER_PX - 1 : y - 2 * ROVER_PX + 2, x - 1 : x + 2].reshape(-1, 3)
         colour = np.array(rover_rgb(i))
         assert (np.abs(top.astype(int) - colour).sum(1) < 60).any() == wears
+
+
+def test_a_label_at_the_frames_edge_goes_inside():
+    """A POI at the left edge of the view: its value label goes right of it, not cut off."""
+    from physrover.viz.labels import label_at
+
+    img = np.zeros((100, 200, 3), dtype=np.uint8)
+    placed: list = []
+    spots = [(3 - 12, 50, "right"), (3 + 12, 50, "left")]  # left of a POI at x = 3 first
+    label_at(img, "2 sees: uav", spots, 0.45, (255, 255, 255), 1, [], placed)
+    assert placed[0][0] == 15  # the second spot, inside the frame
+    assert img[:, :15].max() == 0 and img[:, 15:].max() > 0

@@ -38,13 +38,21 @@ def overlap(a, b) -> int:
 
 def label_at(img, text, spots, scale, colour, thickness, avoid, placed) -> None:
     """Draw ``text`` at the first of the candidate ``spots`` that covers the fewest pixels
-    of the ``avoid`` boxes (rover bodies, labels drawn so far) and add its box to
-    ``placed``. A spot is ``(x, y, align)``: the text's baseline at row y, starting at x
-    (align "left"), ending there ("right") or centred on it ("centre")."""
+    of the ``avoid`` boxes (rover bodies, labels drawn so far) and loses the fewest past the
+    frame's edge (each counted 4 times), and add its box to ``placed``. A spot is ``(x, y,
+    align)``: the text's baseline at row y, starting at x (align "left"), ending there
+    ("right") or centred on it ("centre")."""
     (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thickness)
     shift = {"left": 0, "right": w, "centre": w // 2}
     boxes = [(x - shift[align], y - h, x - shift[align] + w, y + 3) for x, y, align in spots]
-    best = min(range(len(boxes)), key=lambda j: sum(overlap(boxes[j], b) for b in avoid))
+    frame = (0, 0, img.shape[1], img.shape[0])
+
+    def cost(j):  # the pixels it covers, and those it would lose past the frame's edge
+        box = boxes[j]
+        cut = (box[2] - box[0]) * (box[3] - box[1]) - overlap(box, frame)
+        return sum(overlap(box, b) for b in avoid) + 4 * cut
+
+    best = min(range(len(boxes)), key=cost)
     text_at(img, text, (boxes[best][0], boxes[best][3] - 3), scale, colour, thickness, halo=True)
     placed.append(boxes[best])
 
