@@ -9,7 +9,8 @@ import yaml
 
 from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig
-from physrover.config.lab import lab_domain, lab_run
+from physrover.config.lab import lab_domain
+from physrover.config.lab_run import lab_run
 
 EXAMPLE = Path(__file__).parent / "data" / "lab-example" / "config.yaml"
 
@@ -138,3 +139,13 @@ def test_a_rover_class_splits_where_its_agents_differ_but_not_for_a_spawn():
     assert [(a.name, a.count, a.feedback) for a in domain.agents] == [
         ("rover_1", 2, "ID-step"), ("rover_2", 1, "D"), ("uav", 1, "ID-step")]  # fmt: skip
     assert domain.agents[0].moves_with == ()  # needs_uav_to_move is false in the example
+
+
+def test_a_hidden_poi_nobody_senses_is_noted_not_refused():
+    """The lab scores a hidden POI no agent senses (no UAVs, rovers on RoverLidar);
+    physrover cannot hide a POI from every class, so every agent senses it, with a note."""
+    lab = _example()
+    lab["env"]["agents"]["uavs"] = []
+    run, notes = lab_run(lab)
+    assert [a.name for a in run.domain.agents] == ["rover"] and run.domain.pois[0].visible_to == ()
+    assert any(note.startswith("hidden POIs but no UAV that senses them") for note in notes)

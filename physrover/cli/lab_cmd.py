@@ -1,6 +1,6 @@
 """``physrover import-lab``: one of the paper's lab's YAML configs as physrover TOML.
 
-The conversion is :func:`physrover.config.lab.lab_run`; this command reads the YAML (with
+The conversion is :func:`physrover.config.lab_run.lab_run`; this command reads the YAML (with
 PyYAML, the ``lab`` extra), writes the run's TOML with the differences that stay as
 comments at its top, and prints those notes, or refuses in one line what physrover cannot
 express.
@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from physrover.cli.commands import UsageError
-from physrover.config.lab import lab_run
+from physrover.config.lab_run import lab_run
 
 
 def cmd_import_lab(args: argparse.Namespace) -> int:

@@ -52,8 +52,6 @@ from typing import Any
 
 from physrover.config.base import ConfigError
 from physrover.config.domain import DomainConfig
-from physrover.config.learn import LearnConfig
-from physrover.config.run import RunConfig
 
 INFLUENCE_RADIUS = 5.0
 """The lab's influence radius (``computer.hpp``, ``is_influencing``), world units."""
@@ -72,7 +70,7 @@ LAB_MEASURES = {"inverse_distance_squared": "inverse-square",
 LAB_CONSTRAINTS = {"final": "final", "sequential": "any"}
 
 
-def _get(table: dict, key: str, where: str, default: Any = ...) -> Any:
+def get(table: dict, key: str, where: str, default: Any = ...) -> Any:
     """``table[key]``, or ``default``; a ConfigError naming the lab's key if missing."""
     if key in table:
         return table[key]
@@ -83,7 +81,7 @@ def _get(table: dict, key: str, where: str, default: Any = ...) -> Any:
 
 def _feedback(agent: dict, where: str) -> dict[str, Any]:
     """The ``[[agents]]`` credit fields of one lab agent (module docstring)."""
-    reward = _get(agent, "reward_type", where)
+    reward = get(agent, "reward_type", where)
     params = agent.get("IndirectDifference") or {}
     fields: dict[str, Any] = {"feedback_plus_G": bool(params.get("add_G", False))}
     if reward in LAB_REWARDS:
@@ -122,7 +120,7 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
     sensor = agent.get("sensor") or {}
     kind = sensor.get("type", "SmartLidar")
     if kind == "UavDistanceLidar":
-        radius = float(_get(agent, "observation_radius", where))
+        radius = float(get(agent, "observation_radius", where))
         return {"kind": "distances", "classes": ["uav"], "radius": radius, "blind": True}
     if kind not in ("SmartLidar", "RoverLidar"):
         raise ConfigError(f"{where}.sensor.type", "SmartLidar, RoverLidar or UavDistanceLidar,"
@@ -130,7 +128,7 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
     for key in ("observable_subtypes",):
         if agent.get(key):
             raise ConfigError(f"{where}.{key}", "POI subtypes are not in physrover yet")
-    resolution = _get(agent, "resolution", where)
+    resolution = get(agent, "resolution", where)
     if 360 % resolution:
         raise ConfigError(f"{where}.resolution", f"must divide 360, got {resolution}")
     accum = sensor.get("accum_type", "average")
@@ -140,7 +138,7 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
         if value not in known:
             raise ConfigError(f"{where}.sensor.{key}", f"one of {', '.join(known)}, got {value!r}")
     return {"kind": "lidar", "sectors": int(360 // resolution), "channels": "by-class",
-            "bearing": "world", "radius": float(_get(agent, "observation_radius", where)),
+            "bearing": "world", "radius": float(get(agent, "observation_radius", where)),
             "compose": LAB_ACCUM[accum], "measure": LAB_MEASURES[measure],
             "empty": float(sensor.get("default_value", -1.0)),
             "blind": kind == "RoverLidar"}  # fmt: skip
@@ -148,14 +146,14 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
 
 def _spawn(position: dict, where: str) -> tuple[str, Any]:
     """(rule, parameter) of a lab ``position`` table: fixed [x, y], a box or a circle."""
-    rule = _get(position, "spawn_rule", where)
+    rule = get(position, "spawn_rule", where)
     if rule == "fixed":
-        return "fixed", [float(v) for v in _get(position, "fixed", where)]
+        return "fixed", [float(v) for v in get(position, "fixed", where)]
     if rule == "random_uniform":
-        box = _get(position, "random_uniform", where)
+        box = get(position, "random_uniform", where)
         return "box", [float(box[k]) for k in ("low_x", "high_x", "low_y", "high_y")]
     if rule == "random_circle":
-        circle = _get(position, "random_circle", where)
+        circle = get(position, "random_circle", where)
         return "circle", [*map(float, circle["center"]), float(circle["radius"])]
     raise ConfigError(f"{where}.spawn_rule", f"fixed, random_uniform or random_circle, got "
                       f"{rule!r}")  # fmt: skip
@@ -191,7 +189,7 @@ def _agent_class(kind: str, agents: list[dict], first: int, lab: dict) -> dict[s
         table["moves_with"] = ["uav"]
     if action == "pick_uav":
         table["picks"] = ["uav"]
-    rule, value = _spawn(_get(agent, "position", where), f"{where}.position")
+    rule, value = _spawn(get(agent, "position", where), f"{where}.position")
     table["spawn"] = rule
     if rule == "fixed":
         table["spawn_positions"] = [_spawn(a["position"], where)[1] for a in agents]
@@ -251,10 +249,10 @@ def _pois(lab: dict, classes: list[dict]) -> tuple[list[dict[str, Any]], list[tu
                 raise ConfigError(f"{where}.constraint", f"final or sequential, got "
                                   f"{constraint!r}")  # fmt: skip
             radius = float(poi.get("capture_radius", -1.0))
-            table = {"value": float(_get(poi, "value", where)),
-                     "n_req": int(_get(poi, "coupling", where)), "value_by": "distance",
+            table = {"value": float(get(poi, "value", where)),
+                     "n_req": int(get(poi, "coupling", where)), "value_by": "distance",
                      "score_at": LAB_CONSTRAINTS[constraint],
-                     "sense_radius": float(_get(poi, "observation_radius", where)),
+                     "sense_radius": float(get(poi, "observation_radius", where)),
                      "disappear": "captured" if live and poi.get("disappear_bool")
                      else "never"}  # fmt: skip
             if radius == -1.0:
@@ -263,16 +261,10 @@ def _pois(lab: dict, classes: list[dict]) -> tuple[list[dict[str, Any]], list[tu
                 table.update(capture_by="radius-or-sight", capture_radius=radius)
             seen = [c["name"] for c in classes if not c["sensor"]["blind"]
                     and (kind == "rover_pois" or not c["captures"])]  # fmt: skip
-            if not seen:
-                raise ConfigError(
-                    f"{where}",
-                    "no agent senses this POI (UAVs see hidden POIs; "
-                    "RoverLidar sees none): physrover cannot hide it from all",
-                )
-            if len(seen) < len(classes):
+            if seen and len(seen) < len(classes):  # nobody senses it: left to all (noted)
                 table["visible_to"] = seen
             tables.append(table)
-            positions.append(_spawn(_get(poi, "position", where), f"{where}.position"))
+            positions.append(_spawn(get(poi, "position", where), f"{where}.position"))
     return tables, positions
 
 
@@ -314,7 +306,7 @@ def lab_domain(lab: dict, steps: int | None = None) -> DomainConfig:
     lab = copy.deepcopy(lab)
     if "env" not in lab:
         raise ConfigError("env", "missing: not a lab config")
-    steps = steps if steps is not None else _get(lab.get("ccea", {}), "num_steps", "ccea")
+    steps = steps if steps is not None else get(lab.get("ccea", {}), "num_steps", "ccea")
     agents = _classes(lab)
     pois, spawns = _pois(lab, agents)
     for table in agents:
@@ -330,80 +322,4 @@ def lab_domain(lab: dict, steps: int | None = None) -> DomainConfig:
     })  # fmt: skip
 
 
-def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
-    """The ``[learn]`` table of a lab config's ``ccea`` section, appending to ``notes`` what
-    physrover does otherwise (module docstring of :func:`lab_run`)."""
-    hidden = _get(_get(ccea, "network", "ccea"), "hidden_layers", "ccea.network")
-    hidden = [hidden] if isinstance(hidden, int) else list(hidden)
-    if len(hidden) != 1:
-        raise ConfigError("ccea.network.hidden_layers", f"physrover's policies have one hidden "
-                          f"layer, got {hidden}")  # fmt: skip
-    notes.append("hidden layer: ReLU here, tanh in the lab; weights start U(+-1/sqrt(fan_in)) "
-                 "here, U(-1, 1) in the lab")  # fmt: skip
-    mutation = _get(ccea, "mutation", "ccea")
-    if float(mutation.get("mean", 0.0)) != 0.0:
-        raise ConfigError("ccea.mutation.mean", f"physrover's noise has mean 0, got "
-                          f"{mutation['mean']}")  # fmt: skip
-    selection = _get(_get(ccea, "selection", "ccea"), "n_elites_binary_tournament",
-                     "ccea.selection")  # fmt: skip
-    if selection.get("n_individual_elites_based_on_team_fitness", 0):
-        raise ConfigError("ccea.selection.n_elites_binary_tournament."
-                          "n_individual_elites_based_on_team_fitness",
-                          "elites by team fitness are not in physrover yet")  # fmt: skip
-    formation = (ccea.get("team_formation") or {}).get("type", "random_teams")
-    formations = {"random_teams": "random", "softmax_teams": "softmax", "fixed_teams": "rank"}
-    if formation not in formations:
-        raise ConfigError("ccea.team_formation.type", f"random_teams, softmax_teams or "
-                          f"fixed_teams, got {formation!r}")  # fmt: skip
-    rollouts = int(ccea.get("evaluation", {}).get("multi_rollout", {}).get("num_rollouts", 1))
-    if rollouts != 1:
-        raise ConfigError("ccea.evaluation.multi_rollout.num_rollouts", "physrover plays one "
-                          f"episode per team and generation here, got {rollouts}")  # fmt: skip
-    if not ccea.get("evaluation", {}).get("test_adhoc_team_switch", False):
-        notes.append("learning curve: the champion team (each population's best) here; the "
-                     "lab's default logs its best team by G")  # fmt: skip
-    return {"method": "D", "generations": int(_get(ccea, "num_generations", "ccea")),
-            "population": int(_get(_get(ccea, "populations", "ccea"), "agent_population_size",
-                                   "ccea.populations")),
-            "hidden": int(hidden[0]), "mutation": "gauss",
-            "mutation_rate": float(_get(mutation, "independent_probability", "ccea.mutation")),
-            "mutation_scale": float(_get(mutation, "std_deviation", "ccea.mutation")),
-            "team_formation": formations[formation], "softmax_temperature": 1.0,
-            "selection": "elites",
-            "n_individual_elites": int(_get(selection, "n_individual_elites", "ccea.selection")),
-            "n_team_elites": int(_get(selection, "n_team_elites", "ccea.selection")),
-            "eval_episodes": 1}  # fmt: skip
-
-
-def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
-    """The :class:`~physrover.config.RunConfig` of a whole lab config (``env`` and
-    ``ccea``), and notes on what physrover does otherwise. The CCEA: ``[learn] method =
-    "D"`` (a policy's fitness is its feedback in one episode: the lab's one rollout), each
-    class's own feedback, Gaussian mutation, the lab's elites selection and team elites,
-    random, softmax (temperature 1) or ranked (``fixed_teams``) teams, one evaluation
-    episode; ``num_trials`` trials are seeds (``physrover sweep``). Refused: more hidden
-    layers, a mutation mean, elites by team fitness, several rollouts per team."""
-    notes: list[str] = []
-    domain = lab_domain(lab)
-    learn = _learn(lab["ccea"], notes)
-    learn["feedback"] = domain.agents[0].feedback or "D"
-    seed = (lab.get("debug", {}).get("random_seed") or {}).get("set_seed")
-    if seed is not None:
-        learn["seed"] = int(seed)
-    notes.append("scored states: the T + 1 positions here; the lab's training paths hold 3 "
-                 "a step (raw, clamped to the agent's box, to the map)")  # fmt: skip
-    radii = [a.sensor.radius for a in domain.agents]
-    if any(p.sense_radius < max(radii) for p in domain.pois):
-        notes.append("a POI's observation radius also limits who senses it here (the lab: "
-                     "only who captures it by sight)")  # fmt: skip
-    if any(p.disappear != "never" for p in domain.pois):
-        notes.append("disappear_bool: a POI is gone from sight the step after its capture "
-                     "here; the lab's once a rover's SmartLidar is within 1.0 of it")  # fmt: skip
-    trials = lab.get("experiment", {}).get("num_trials")
-    if trials:
-        notes.append(f"{trials} trials: one run per seed, e.g. physrover sweep with seeds = "
-                     f"{trials}")  # fmt: skip
-    return RunConfig(domain, LearnConfig.from_dict(learn)), notes
-
-
-__all__ = ["INFLUENCE_RADIUS", "LAB_D_MIN", "lab_domain", "lab_run"]
+__all__ = ["INFLUENCE_RADIUS", "LAB_D_MIN", "get", "lab_domain"]
