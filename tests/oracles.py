@@ -458,10 +458,12 @@ def lab_softmax_order(fitness, rng) -> list:
     return order
 
 
-def evolve_elites_loops(pool, pool_fitness, k, n_elites, a, b, coin, hit, noise, scale):
+def evolve_elites_loops(pool, pool_fitness, k, n_elites, a, b, coin, hit, noise, scale,
+                        pool_team_G=None, n_team_fitness=0):  # fmt: skip
     """:func:`physrover.learn.evolution.evolve_elites` with the same draws given as arrays:
     member indices ``a``, ``b`` (already distinct), ``coin`` (R, n_tour) uniforms, ``hit``
-    (R, n_tour, P) mutation mask and ``noise`` the draws for the hit weights in C order."""
+    (R, n_tour, P) mutation mask and ``noise`` the draws for the hit weights in C order;
+    after the fitness elites, the ``n_team_fitness`` best by ``pool_team_G``."""
     n_pop, n = pool_fitness.shape
     out = np.empty((n_pop, k, pool.shape[2]), dtype=pool.dtype)
     carried = np.full((n_pop, k), np.nan)
@@ -469,10 +471,14 @@ def evolve_elites_loops(pool, pool_fitness, k, n_elites, a, b, coin, hit, noise,
     for r in range(n_pop):
         fit = [(-math.inf if math.isnan(f) else f) for f in pool_fitness[r]]
         ranked = sorted(range(n), key=lambda i: (-fit[i], i))
-        for e in range(n_elites):
+        if n_team_fitness:
+            team = [(-math.inf if math.isnan(g) else g) for g in pool_team_G[r]]
+            ranked = ranked[:n_elites] + sorted(range(n), key=lambda i: (-team[i], i))
+        n_kept = n_elites + n_team_fitness
+        for e in range(n_kept):
             out[r, e] = pool[r, ranked[e]]
             carried[r, e] = pool_fitness[r, ranked[e]]
-        for t in range(k - n_elites):
+        for t in range(k - n_kept):
             i, j = a[r, t], b[r, t]
             win = i if fit[i] > fit[j] or (fit[i] == fit[j] and coin[r, t] < 0.5) else j
             child = pool[r, win].copy()
@@ -480,22 +486,25 @@ def evolve_elites_loops(pool, pool_fitness, k, n_elites, a, b, coin, hit, noise,
                 if hit[r, t, p]:
                     child[p] += np.float32(scale * noise[used])
                     used += 1
-            out[r, n_elites + t] = child
+            out[r, n_kept + t] = child
     return out, carried
 
 
 def select_team_elites_loops(elite_genomes, elite_fitness, elite_G, population, team_index,
-                             team_G, fitness):  # fmt: skip
-    """The n best teams by G among [elites | training teams], ties to the earlier one."""
+                             team_G, fitness, elite_team_G):  # fmt: skip
+    """The n best teams by G among [elites | training teams], ties to the earlier one; each
+    kept with its members' fitness and the G it had when it became an elite
+    (``elite_team_G`` for an elite that stays)."""
     n = len(elite_G)
-    candidates = [(elite_G[j], j, elite_genomes[j], elite_fitness[j]) for j in range(n)]
+    candidates = [(elite_G[j], j, elite_genomes[j], elite_fitness[j], elite_team_G[j])
+                  for j in range(n)]  # fmt: skip
     for m in range(len(team_G)):
         genomes = np.stack([population[r, team_index[m, r]] for r in range(population.shape[0])])
         member = np.array([fitness[r, team_index[m, r]] for r in range(population.shape[0])])
-        candidates.append((team_G[m], n + m, genomes, member))
+        candidates.append((team_G[m], n + m, genomes, member, team_G[m]))
     candidates.sort(key=lambda c: (-c[0], c[1]))
     best = candidates[:n]
-    return np.stack([c[2] for c in best]), np.stack([c[3] for c in best])
+    return tuple(np.stack([c[i] for c in best]) for i in (2, 3, 4))
 
 
 # -- POI rules (issue 33, [[pois]]), as plain loops ---------------------------------------------

@@ -79,24 +79,29 @@ def _pool(rng, n_pop=3, n=12, P=7):
 
 
 @pytest.mark.parametrize("noise", ["gauss", "cauchy"])
-def test_evolve_elites_matches_the_plain_loop_oracle(noise):
+@pytest.mark.parametrize("by_team", [0, 2])
+def test_evolve_elites_matches_the_plain_loop_oracle(noise, by_team):
     rng = np.random.default_rng(3)
     pool, fitness = _pool(rng)
+    team_G = rng.integers(0, 5, fitness.shape).astype(float)  # ties on purpose
+    team_G[0, 1] = np.nan
     k, n_elites, rate, scale = 10, 3, 0.5, 0.1
     got, carried = evolve_elites(pool, fitness, k, n_elites, np.random.default_rng(4), rate,
-                                 scale, noise)  # fmt: skip
+                                 scale, noise, team_G, by_team)  # fmt: skip
     draws = np.random.default_rng(4)  # the same draws, in evolve_elites' order
     n_pop, n, P = pool.shape
-    a = draws.integers(n, size=(n_pop, k - n_elites))
-    b = draws.integers(n - 1, size=(n_pop, k - n_elites))
+    n_tour = k - n_elites - by_team
+    a = draws.integers(n, size=(n_pop, n_tour))
+    b = draws.integers(n - 1, size=(n_pop, n_tour))
     b += b >= a
     coin = draws.random(a.shape)
-    hit = draws.random((n_pop, k - n_elites, P)) < rate
+    hit = draws.random((n_pop, n_tour, P)) < rate
     n_hit = int(hit.sum())
     draw = draws.standard_cauchy if noise == "cauchy" else draws.standard_normal
     noise_draws = draw(n_hit)
     want, want_carried = oracles.evolve_elites_loops(pool, fitness, k, n_elites, a, b, coin,
-                                                     hit, noise_draws, scale)  # fmt: skip
+                                                     hit, noise_draws, scale, team_G,
+                                                     by_team)  # fmt: skip
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(carried, want_carried)
     assert (a != b).all()
@@ -145,11 +150,19 @@ def test_team_elites_keep_the_best_teams_as_the_oracle():
         elite_G = rng.integers(0, 4, size=n).astype(float)
         fitness = rng.normal(size=(n_pop, k))
         want = oracles.select_team_elites_loops(
-            elites.genomes, elites.fitness, elite_G, population, team_index, team_G, fitness
+            elites.genomes,
+            elites.fitness,
+            elite_G,
+            population,
+            team_index,
+            team_G,
+            fitness,
+            elites.team_G,
         )
         elites.select(elite_G, population, team_index, team_G, fitness)
         np.testing.assert_array_equal(elites.genomes, want[0])
         np.testing.assert_array_equal(elites.fitness, want[1])
+        np.testing.assert_array_equal(elites.team_G, want[2])  # stale: when it became one
 
 
 def test_ccea_replays_elite_teams_and_never_loses_the_best():
@@ -183,12 +196,15 @@ def test_ccea_replays_elite_teams_and_never_loses_the_best():
     assert (ccea.champion == 0).all()
 
 
-def test_resume_with_softmax_and_elites_is_bit_identical(tmp_path):
+@pytest.mark.parametrize("lab", [{}, {"n_team_fitness_elites": 2, "team_formation": "rank"}])
+def test_resume_with_softmax_and_elites_is_bit_identical(tmp_path, lab):
     config = RunConfig().with_overrides({
         **EASY, "method": "max-critic", "selection": "elites", "n_individual_elites": 3,
         "n_team_elites": 2, "team_formation": "softmax", "softmax_temperature": 0.5,
         "mutation": "gauss", "checkpoint_every": 3, "seed": 4,
     })  # fmt: skip
+    if lab:
+        config = config.with_overrides({**lab, "softmax_temperature": 1.0})
     full = train(config, tmp_path / "full", generations=7, progress=False)
     part = train(config, tmp_path / "part", generations=4, progress=False)
     train(None, part, resume=True, generations=7, progress=False)
@@ -235,6 +251,8 @@ SOFTMAX = {"team_formation": "softmax"}
         ({**ELITES, "n_individual_elites": 50}, "elites: must be in [1, population) = [1, 50)"),
         ({**ELITES, "n_individual_elites": 0}, "n_individual_elites: must be in [1, population)"),
         ({**ELITES, "n_team_elites": -1}, "n_team_elites: must be >= 0"),
+        ({**ELITES, "n_team_fitness_elites": 40}, "n_team_fitness_elites: must be >= 0 and"),
+        ({"n_team_fitness_elites": 2}, 'n_team_fitness_elites: configures selection = "el'),
         ({**SOFTMAX, "method": "hall-of-fame"}, "'hall-of-fame' plans its own teams"),
     ],
 )

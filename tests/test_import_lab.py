@@ -101,6 +101,13 @@ def test_what_physrover_cannot_express_is_refused_in_one_line(path, value, messa
     assert len(err) == 1 and err[0].startswith(f"physrover: error: {message}")
 
 
+def test_elites_by_team_fitness_map_to_their_field():
+    lab = _with("ccea.selection.n_elites_binary_tournament."
+                "n_individual_elites_based_on_team_fitness", 5)  # fmt: skip
+    assert lab_run(lab)[0].learn.n_team_fitness_elites == 5
+    assert lab_run(_example())[0].learn.n_team_fitness_elites == 0
+
+
 def test_files_that_are_not_lab_configs_say_so(tmp_path, capsys):
     bad = tmp_path / "bad.yaml"
     bad.write_text("env: [unclosed")

@@ -29,10 +29,6 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
                           f"{mutation['mean']}")  # fmt: skip
     selection = get(get(ccea, "selection", "ccea"), "n_elites_binary_tournament",
                      "ccea.selection")  # fmt: skip
-    if selection.get("n_individual_elites_based_on_team_fitness", 0):
-        raise ConfigError("ccea.selection.n_elites_binary_tournament."
-                          "n_individual_elites_based_on_team_fitness",
-                          "elites by team fitness are not in physrover yet")  # fmt: skip
     formation = (ccea.get("team_formation") or {}).get("type", "random_teams")
     formations = {"random_teams": "random", "softmax_teams": "softmax", "fixed_teams": "rank"}
     if formation not in formations:
@@ -55,6 +51,8 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
             "selection": "elites",
             "n_individual_elites": int(get(selection, "n_individual_elites", "ccea.selection")),
             "n_team_elites": int(get(selection, "n_team_elites", "ccea.selection")),
+            "n_team_fitness_elites": int(selection.get(
+                "n_individual_elites_based_on_team_fitness", 0)),
             "eval_episodes": 1}  # fmt: skip
 
 
@@ -65,7 +63,7 @@ def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
     class's own feedback, Gaussian mutation, the lab's elites selection and team elites,
     random, softmax (temperature 1) or ranked (``fixed_teams``) teams, one evaluation
     episode; ``num_trials`` trials are seeds (``physrover sweep``). Refused: more hidden
-    layers, a mutation mean, elites by team fitness, several rollouts per team."""
+    layers, a mutation mean, several rollouts per team."""
     notes: list[str] = []
     domain = lab_domain(lab)
     learn = _learn(lab["ccea"], notes)

@@ -68,6 +68,10 @@ class LearnConfig(ConfigBase):
     n_individual_elites: int = 10
     """Under ``selection = "elites"``: policies per population copied unmutated (the best
     by fitness, the champion first)."""
+    n_team_fitness_elites: int = 0
+    """Under ``selection = "elites"``: policies per population also copied unmutated, the
+    best by the G of the team each played in (the lab's
+    ``n_individual_elites_based_on_team_fitness``), after the fitness elites."""
     n_team_elites: int = 10
     """Under ``selection = "elites"``: best teams by G kept whole and replayed each
     generation; their members join the selection pool (0: none)."""
@@ -158,7 +162,7 @@ class LearnConfig(ConfigBase):
             "random teams",
         )
         if self.selection != "elites":
-            for name in ("n_individual_elites", "n_team_elites"):
+            for name in ("n_individual_elites", "n_team_elites", "n_team_fitness_elites"):
                 check(self.is_default(name), name, 'configures selection = "elites"')
             return
         check(
@@ -168,3 +172,7 @@ class LearnConfig(ConfigBase):
             f"(the champion is elite 0), got {self.n_individual_elites}",
         )
         check(self.n_team_elites >= 0, "n_team_elites", f"must be >= 0, got {self.n_team_elites}")
+        check(0 <= self.n_team_fitness_elites < self.population - self.n_individual_elites,
+              "n_team_fitness_elites", "must be >= 0 and leave room for one mutated offspring "
+              f"beside the {self.n_individual_elites} fitness elites, got "
+              f"{self.n_team_fitness_elites}")  # fmt: skip

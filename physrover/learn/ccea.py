@@ -213,7 +213,7 @@ class CCEA:
         # The champion evaluated in this batch, before evolution can overwrite it.
         self.method.observe_champion(self.genomes[np.arange(R), self.champion], eval_G)
         if cfg.selection == "elites":
-            self._evolve_elites(fitness, G, team_index)
+            self._evolve_elites(fitness, G, team_index, G_by_policy.mean(axis=0))
         else:
             _, losers = evolve(
                 self.genomes,
@@ -271,16 +271,18 @@ class CCEA:
             world.set_coupling(self.curriculum.n_req)
         return float(G.mean())
 
-    def _evolve_elites(self, fitness: np.ndarray, G: np.ndarray, team_index: np.ndarray) -> None:
+    def _evolve_elites(self, fitness: np.ndarray, G: np.ndarray, team_index: np.ndarray,
+                       team_G: np.ndarray) -> None:  # fmt: skip
         """The lab's n-elites selection (:func:`evolve_elites`) over the populations and the
         elite teams' members; then the next elite teams (:class:`TeamElites`). The champion
         is elite 0 of every population."""
         cfg = self.config.learn
-        pool, pool_fitness = self.genomes, fitness
+        pool, pool_fitness, pool_team_G = self.genomes, fitness, team_G
         if self.team_elites is not None:
-            members, member_fitness = self.team_elites.pool()
+            members, member_fitness, member_team_G = self.team_elites.pool()
             pool = np.concatenate([self.genomes, members], axis=1)
             pool_fitness = np.concatenate([fitness, member_fitness], axis=1)
+            pool_team_G = np.concatenate([team_G, member_team_G], axis=1)
             self.team_elites.select(
                 G[self.n_train : self.n_played],
                 self.genomes,
@@ -289,15 +291,8 @@ class CCEA:
                 fitness,
             )
         self.genomes[...], self.carried = evolve_elites(
-            pool,
-            pool_fitness,
-            self.k,
-            cfg.n_individual_elites,
-            self.evo_rng,
-            cfg.mutation_rate,
-            cfg.mutation_scale,
-            cfg.mutation,
-        )
+            pool, pool_fitness, self.k, cfg.n_individual_elites, self.evo_rng, cfg.mutation_rate,
+            cfg.mutation_scale, cfg.mutation, pool_team_G, cfg.n_team_fitness_elites)  # fmt: skip
         self.champion = np.zeros(self.n_rovers, dtype=np.int64)
 
     def champion_genomes(self) -> np.ndarray:

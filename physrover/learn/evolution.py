@@ -91,6 +91,8 @@ def evolve_elites(
     mutation_rate: float,
     mutation_scale: float,
     noise: str = "gauss",
+    pool_team_G: np.ndarray | None = None,
+    n_team_fitness: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The lab's n-elites binary tournament (``generate_offspring`` in its ``ccea_lib.py``).
 
@@ -99,9 +101,12 @@ def evolve_elites(
 
     1. the ``n_elites`` fittest pool members, best first, copied unmutated (ties: lower pool
        index first), so the champion, the best, is policy 0;
-    2. ``k - n_elites`` winners of binary tournaments, each between two distinct pool members
-       drawn uniformly (the higher fitness wins, a fair coin breaks ties), copied and
-       mutated (:func:`mutate`).
+    1b. the ``n_team_fitness`` pool members with the best ``pool_team_G`` (R, n), the G of
+       the team each played in (the lab's ``n_individual_elites_based_on_team_fitness``;
+       ties as above; one may be a fitness elite too, as in the lab), copied unmutated;
+    2. ``k - n_elites - n_team_fitness`` winners of binary tournaments, each between two
+       distinct pool members drawn uniformly (the higher fitness wins, a fair coin breaks
+       ties), copied and mutated (:func:`mutate`).
 
     NaN fitness counts as worst. The lab lists each current policy twice in the pool (once
     in the population, once as a member of its ad-hoc team); here each appears once.
@@ -119,7 +124,11 @@ def evolve_elites(
     fit = np.where(np.isnan(pool_fitness), -np.inf, pool_fitness)
     rows = np.arange(n_pop)[:, None]
     best = np.argsort(-fit, axis=1, kind="stable")[:, :n_elites]  # (R, n_elites)
-    n_tour = k - n_elites
+    if n_team_fitness:
+        team_fit = np.where(np.isnan(pool_team_G), -np.inf, pool_team_G)
+        by_team = np.argsort(-team_fit, axis=1, kind="stable")[:, :n_team_fitness]
+        best = np.concatenate([best, by_team], axis=1)
+    n_tour = k - best.shape[1]
     a = rng.integers(n, size=(n_pop, n_tour))
     b = rng.integers(n - 1, size=(n_pop, n_tour))
     b += b >= a  # a second member, distinct from the first

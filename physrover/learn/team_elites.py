@@ -29,6 +29,8 @@ class TeamElites:
     Attributes:
         genomes: (n, R, P) each elite team's policies.
         fitness: (n, R) each member's fitness when its team became an elite (NaN: unknown).
+        team_G: (n,) the G of each elite team when it became one (stale, as its members'
+            fitness; NaN: unknown), what elites by team fitness read.
     """
 
     def __init__(self, n: int, population: np.ndarray, rng: np.random.Generator):
@@ -37,6 +39,7 @@ class TeamElites:
         pick = rng.integers(k, size=(n, n_pop))
         self.genomes = population[np.arange(n_pop)[None, :], pick].copy()
         self.fitness = np.full((n, n_pop), np.nan)
+        self.team_G = np.full(n, np.nan)
 
     @property
     def n(self) -> int:
@@ -46,9 +49,10 @@ class TeamElites:
         """(R, n, P): the elites as extra columns of the rollout's genome table."""
         return self.genomes.transpose(1, 0, 2)
 
-    def pool(self) -> tuple[np.ndarray, np.ndarray]:
-        """(R, n, P) genomes and (R, n) fitness of the members, for the selection pool."""
-        return self.table(), self.fitness.T
+    def pool(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(R, n, P) genomes, (R, n) fitness and (R, n) team G of the members, for the
+        selection pool."""
+        return self.table(), self.fitness.T, np.broadcast_to(self.team_G, self.fitness.T.shape)
 
     def select(
         self,
@@ -76,11 +80,14 @@ class TeamElites:
         elite = np.minimum(best, n - 1)  # rows of training teams unused
         genomes = np.where(from_elite[:, None, None], self.genomes[elite], population[rovers, team])
         member_fitness = np.where(from_elite[:, None], self.fitness[elite], fitness[rovers, team])
+        self.team_G = np.where(from_elite, self.team_G[elite], team_G[np.maximum(best - n, 0)])
         self.genomes, self.fitness = genomes, member_fitness
 
     def state(self) -> dict[str, np.ndarray]:
-        return {"team_elites": self.genomes, "team_elite_fitness": self.fitness}
+        return {"team_elites": self.genomes, "team_elite_fitness": self.fitness,
+                "team_elite_G": self.team_G}  # fmt: skip
 
     def load(self, arrays: dict[str, np.ndarray]) -> None:
         self.genomes = np.array(arrays["team_elites"])
         self.fitness = np.array(arrays["team_elite_fitness"])
+        self.team_G = np.array(arrays.get("team_elite_G", np.full(self.n, np.nan)))  # 0.6
