@@ -101,6 +101,12 @@ def test_what_physrover_cannot_express_is_refused_in_one_line(path, value, messa
     assert len(err) == 1 and err[0].startswith(f"physrover: error: {message}")
 
 
+def test_the_labs_first_uav_speed_is_noted_where_it_differs():
+    notes = lab_run(_with("ccea.network.uav_max_velocity", 2.0))[1]
+    assert any("first UAV at rover_max_velocity (1.0)" in note for note in notes)
+    assert not any("first UAV" in note for note in lab_run(_example())[1])
+
+
 def test_elites_by_team_fitness_map_to_their_field():
     lab = _with("ccea.selection.n_elites_binary_tournament."
                 "n_individual_elites_based_on_team_fitness", 5)  # fmt: skip

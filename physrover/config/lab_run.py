@@ -85,6 +85,11 @@ def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
     ):
         notes.append("hidden POIs but no UAV that senses them: every agent senses them here "
                      "(physrover cannot hide a POI from all)")  # fmt: skip
+    network = lab["ccea"].get("network", {})
+    rover_v, uav_v = network.get("rover_max_velocity"), network.get("uav_max_velocity")
+    if rover_v != uav_v and any(not a.captures and a.action == "world" for a in domain.agents):
+        notes.append(f"the lab moves its first UAV at rover_max_velocity ({rover_v}) under dxdy "
+                     f"(ccea_lib.py: ind <= num_rovers); here every UAV at {uav_v}")  # fmt: skip
     trials = lab.get("experiment", {}).get("num_trials")
     if trials:
         notes.append(f"{trials} trials: one run per seed, e.g. physrover sweep with seeds = "
