@@ -107,9 +107,20 @@ CLI = "import sys; from physrover.cli.main import main; sys.exit(main(sys.argv[1
 
 
 def _driver(path: Path, root: Path) -> subprocess.Popen:
+    """A sweep driver in a process group of its own, with its pool worker: killing the group
+    is a driver's machine dying (killing the driver alone would orphan its worker)."""
     command = [sys.executable, "-c", CLI, "sweep", str(path), "--root", str(root), "--workers", "1"]
     return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONPATH": str(ROOT)})  # fmt: skip
+                            env={**os.environ, "PYTHONPATH": str(ROOT)},
+                            start_new_session=True)  # fmt: skip
+
+
+def _kill_group(driver: subprocess.Popen) -> None:
+    """SIGKILL ``driver``'s whole process group (its pool worker too), if it still runs."""
+    try:
+        os.killpg(driver.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
 
 
 def _segments(run: Path) -> int:
@@ -129,14 +140,18 @@ def test_drivers_share_a_sweep_each_run_trained_once(tmp_path, kills):
     for _ in range(3):  # three drivers at random offsets
         drivers.append(_driver(path, root))
         time.sleep(rng.uniform(0.2, 1.5))
-    for _ in range(kills):  # a driver SIGKILLed mid-sweep, and one started in its place
-        time.sleep(rng.uniform(1.0, 3.0))
-        victim = drivers.pop(rng.randrange(len(drivers)))
-        victim.send_signal(signal.SIGKILL)
-        victim.wait()
-        drivers.append(_driver(path, root))
-    for driver in drivers:
-        assert driver.wait(timeout=600) == 0, driver.stderr.read()
+    try:
+        for _ in range(kills):  # a driver killed mid-sweep, and one started in its place
+            time.sleep(rng.uniform(1.0, 3.0))
+            victim = drivers.pop(rng.randrange(len(drivers)))
+            _kill_group(victim)
+            victim.wait()
+            drivers.append(_driver(path, root))
+        for driver in drivers:
+            assert driver.wait(timeout=600) == 0, driver.stderr.read()
+    finally:  # nothing outlives the test (a killed driver's orphaned worker did: issue 45)
+        for driver in drivers:
+            _kill_group(driver)
     runs = Sweep.load(path).runs(root)
     for spec, ref in zip(runs, reference, strict=True):
         assert comparable_rows(read_metrics(Path(spec.out) / "metrics.csv")) == comparable_rows(
