@@ -2,7 +2,8 @@
 
 Every agent keeps its own population, as in the paper; an agent's policies have its
 class's shape, ``n_in_c -> hidden -> 2`` with ``n_in_c`` its class's sensor size (``U +
-1`` outputs for a picking class, :func:`pick_choices`)
+1`` outputs for a picking class:
+:func:`~physrover.domain.agents.classes.pick_count`)
 (:class:`~physrover.learn.policies.PolicyLayout`). The populations stay one (R, k, P)
 array, P the largest class's genome, a smaller class's genomes in the first P_c entries
 (the rest are never read: evolution mutates them, harmlessly). The world's observations
@@ -20,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from physrover.domain.agents.classes import class_rows
+from physrover.domain.agents.classes import class_rows, pick_count
 from physrover.domain.sensing.sensor import sensor_size
 from physrover.learn.policies import PolicyLayout
 
@@ -32,7 +33,8 @@ class ClassLayouts:
     def __init__(self, hidden: int, domain):
         self.rows = class_rows(domain)
         dims = [sensor_size(c.sensor or domain.sensor, domain) for c in domain.agents]
-        outs = [pick_choices(c, domain) if c.action == "pick" else 2 for c in domain.agents]
+        outs = [pick_count(domain, c) + 1 if a.action == "pick" else 2
+                for c, a in enumerate(domain.agents)]  # fmt: skip
         self.layouts = [PolicyLayout(hidden, d, n) for d, n in zip(dims, outs, strict=True)]
         self.hidden = hidden
         self.n_in = max(dims)
@@ -75,12 +77,6 @@ class MixedTeamPolicy:
         return out
 
 
-def pick_choices(agent_class, domain) -> int:
-    """A picking class's policy outputs: one per agent of its ``picks`` classes, one to stay
-    (the lab's ``num_uavs + 1``)."""
-    return 1 + sum(c.count for c in domain.agents if c.name in agent_class.picks)
-
-
 def team_layout(hidden: int, domain) -> PolicyLayout | ClassLayouts:
     """The policies' layout of ``domain``'s team (module docstring)."""
     if not domain.agents:
@@ -88,4 +84,4 @@ def team_layout(hidden: int, domain) -> PolicyLayout | ClassLayouts:
     return ClassLayouts(hidden, domain)
 
 
-__all__ = ["ClassLayouts", "MixedTeamPolicy", "pick_choices", "team_layout"]
+__all__ = ["ClassLayouts", "MixedTeamPolicy", "team_layout"]

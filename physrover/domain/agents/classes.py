@@ -51,11 +51,22 @@ def class_sensor(config, c: int):
     return (agent.sensor if agent is not None else None) or config.sensor
 
 
-def gate_radius(agent_class, config) -> float:
-    """The class's ``moves_with_radius``, or its sensor's radius for 0 (the lab's rule)."""
-    if agent_class.moves_with_radius:
-        return agent_class.moves_with_radius
-    return float(getattr(agent_class.sensor or config.sensor, "radius", math.inf))
+def sensor_radius(config, c: int) -> float:
+    """Class c's sensing radius, world units (:func:`class_sensor`'s ``radius``; inf for a
+    sensor without one): what capture by sight, the gate and "follow" read."""
+    return float(getattr(class_sensor(config, c), "radius", math.inf))
+
+
+def pick_count(config, c: int) -> int:
+    """U, the agents of class c's ``picks`` classes, which a "pick" or "follow" agent of it
+    moves to (a "pick" command has U + 1 bins, its policy U + 1 outputs)."""
+    picks = config.agents[c].picks
+    return sum(o.count for o in config.agents if o.name in picks)
+
+
+def gate_radius(config, c: int) -> float:
+    """Class c's ``moves_with_radius``, or its sensor's radius for 0 (the lab's rule)."""
+    return config.agents[c].moves_with_radius or sensor_radius(config, c)
 
 
 def agent_names(config) -> list[str]:
@@ -87,4 +98,5 @@ def spawn(positions: np.ndarray, config, rngs) -> None:
 
 
 __all__ = ["agent_classes", "agent_names", "class_names", "class_rows", "class_sensor",
-           "counted_agents", "gate_radius", "per_agent", "spawn"]  # fmt: skip
+           "counted_agents", "gate_radius", "per_agent", "pick_count", "sensor_radius",
+           "spawn"]  # fmt: skip

@@ -35,7 +35,13 @@ from typing import NamedTuple
 import numpy as np
 
 from physrover.core.compiled import jit, jit_inline
-from physrover.domain.agents.classes import agent_classes, class_names, gate_radius
+from physrover.domain.agents.classes import (
+    agent_classes,
+    class_names,
+    gate_radius,
+    pick_count,
+    sensor_radius,
+)
 
 PICK_MODES = ("", "pick", "follow")
 """``Roles.pick_mode`` 1 and 2: the picking actions."""
@@ -62,6 +68,8 @@ class Roles(NamedTuple):
     """(R,) int64: 0 a command, 1 ``"pick"``, 2 ``"follow"``."""
     pick_from: np.ndarray
     """(R, C) bool: the classes agent i picks from (its ``picks``)."""
+    n_picks: np.ndarray
+    """(R,) int64: U, the agents of those classes (a "pick" agent's bins: U + 1)."""
     follow_radius_sq: np.ndarray
     """(R,) float64: how near a followed agent must be, squared (the sensor's radius)."""
     pick_move: np.ndarray
@@ -81,13 +89,13 @@ class Roles(NamedTuple):
             "world_frame": [c.action == "world" for c in classes],
             "bounds": [c.bounds or (-math.inf, math.inf, -math.inf, math.inf) for c in classes],
             "gate": [[n in c.moves_with for n in names] for c in classes],
-            "gate_radius_sq": [gate_radius(c, config) ** 2 for c in classes],
+            "gate_radius_sq": [gate_radius(config, c) ** 2 for c in range(len(classes))],
             "gated": [bool(c.moves_with) for c in classes],
             "pick_mode": [PICK_MODES.index(c.action) if c.action in PICK_MODES else 0
                           for c in classes],
             "pick_from": [[n in c.picks for n in names] for c in classes],
-            "follow_radius_sq": [float(getattr(c.sensor or config.sensor, "radius",
-                                               math.inf)) ** 2 for c in classes],
+            "n_picks": [pick_count(config, c) for c in range(len(classes))],
+            "follow_radius_sq": [sensor_radius(config, c) ** 2 for c in range(len(classes))],
         }  # fmt: skip
         return cls(agent_class, **{k: np.array(v)[agent_class] for k, v in per_class.items()},
                    pick_move=np.zeros((len(agent_class), 2)))  # fmt: skip
@@ -126,9 +134,7 @@ def pick_moves(e, positions, commands, roles):
         xi, yi = positions[e, i, 0], positions[e, i, 1]
         target = -1
         if mode == 1:
-            n_targets = 0
-            for j in range(n):
-                n_targets += roles.pick_from[i, roles.agent_class[j]]
+            n_targets = roles.n_picks[i]
             a = min(max(np.float64(commands[e, i, 0]), -1.0), 1.0)
             choice = min(int((a + 1.0) * 0.5 * (n_targets + 1)), n_targets)
             for j in range(n):

@@ -26,7 +26,6 @@ POI adds its best value without rover i, ``value_without``.
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -35,8 +34,8 @@ from physrover.config.pois import capture_radii
 from physrover.domain.agents.classes import (
     agent_classes,
     class_names,
-    class_sensor,
     counted_agents,
+    sensor_radius,
 )
 from physrover.domain.scoring.captures import last_scored_step
 
@@ -119,8 +118,7 @@ class PoiRules(NamedTuple):
 def _capture_radii_sq(config) -> np.ndarray:
     """(K, R) :attr:`PoiRules.capture_radius_sq` of a domain."""
     own = np.array(capture_radii(config), dtype=np.float64)
-    sensing = np.array([getattr(class_sensor(config, c), "radius", math.inf)
-                        for c in agent_classes(config)], dtype=np.float64)  # fmt: skip
+    sensing = np.array([sensor_radius(config, c) for c in agent_classes(config)])
     radius = np.repeat(own[:, None], config.n_rovers, axis=1)
     for k, poi in enumerate(config.pois):
         sight = np.minimum(sensing, poi.sense_radius)

@@ -239,11 +239,6 @@ def sense_classes(e, state, sensing, obs, scratch):
     for c in range(sensing.first.shape[0]):
         if not sensing.compiled[c]:
             continue
-        reach = (
-            np.int64(math.ceil(math.sqrt(sensing.radius_sq[c]) / sensing.cell))
-            if sensing.local[c]
-            else np.int64(0)
-        )
         if sensing.distances[c]:
             radius = math.sqrt(sensing.radius_sq[c])
             for i in range(sensing.first[c], sensing.stop[c]):
@@ -251,6 +246,11 @@ def sense_classes(e, state, sensing, obs, scratch):
                                                radius, obs), width):  # fmt: skip
                     obs[e, i, q] = 0.0
             continue
+        reach = (
+            np.int64(math.ceil(math.sqrt(sensing.radius_sq[c]) / sensing.cell))
+            if sensing.local[c]
+            else np.int64(0)
+        )
         for i in range(sensing.first[c], sensing.stop[c]):
             n_near = (
                 _near(i, cells, nx, ny, starts, members, reach, near) if sensing.local[c] else -1
