@@ -463,7 +463,7 @@ def main() -> None:
                           "ideal vs physical motion", smooth=100)  # fmt: skip
         summarise("physics-long", runs, ("method", "n_req", "motion"), key=motion_cell)
     # Its third method, the mean critic, run later as a sweep of its own (physics-long's run
-    # directories did not survive their machine): significance.py sets its rows against
+    # directories did not survive their machine): the paper-claims file sets its rows against
     # physics-long's max critic and fig4-7-long's idealised mean critic.
     # It runs in chunks of seeds across machines (POOLED): final scores only.
     runs = [] if left_as_committed("physics-long-mean") else finished_runs("physics-long-mean")

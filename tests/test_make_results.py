@@ -11,6 +11,13 @@ from pathlib import Path
 
 import pytest
 
+from physrover.analysis.claim_tests import (
+    claim_comparisons,
+    claim_trends,
+    load_claims,
+    write_claims,
+)
+from physrover.analysis.results import read_rows
 from physrover.config import RunConfig
 from physrover.experiment.sweep import Sweep
 
@@ -46,16 +53,6 @@ def make_results(monkeypatch):
         module.main()
 
     return run
-
-
-@pytest.fixture
-def significance():
-    spec = importlib.util.spec_from_file_location(
-        "significance", ROOT / "experiments" / "significance.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _final(spec) -> float:
@@ -250,12 +247,12 @@ collisions = true
 
 
 def test_the_mean_critic_under_physics_is_set_against_physics_long_on_another_machine(
-    tmp_path, make_results, significance
+    tmp_path, make_results
 ):
     """physics-long-mean, run where physics-long's run directories are not, adds its rows
     to runs.csv beside physics-long's kept rows, one seed per machine (it is pooled like
-    fig8-9-paper), and significance.py compares the max critic of one with the mean critic
-    of the other, per motion model (claim 12)."""
+    fig8-9-paper), and the paper-claims file compares the max critic of one with the mean
+    critic of the other, per motion model (claim 12)."""
     machines = [tmp_path / name for name in ("first", "second", "third")]
     for root, name, method, seeds in (
         (machines[0], "physics-long", "max-critic", None),
@@ -285,7 +282,7 @@ def test_the_mean_critic_under_physics_is_set_against_physics_long_on_another_ma
     assert [(r["group"], float(r["mean"]), int(r["n"])) for r in figure] == [
         ("mean-critic physics", 2.0, 2), ("mean-critic physics+collisions", 2.0, 2)
     ]  # fmt: skip
-    found = significance.compare(significance.load(last / "runs.csv"))
+    found = claim_comparisons(read_rows(last / "runs.csv"), load_claims("paper-claims")[1])
     claim = [r for r in found if r["claim"] == 12]
     assert [(r["sweep"], r["A"], r["B"]) for r in claim] == [
         ("physics-long vs physics-long-mean", f"max-critic ({m}) n_req=3 rovers=15",
@@ -296,20 +293,25 @@ def test_the_mean_critic_under_physics_is_set_against_physics_long_on_another_ma
     assert [(r["mean_A"], r["mean_B"], r["family_size"]) for r in claim] == [(7.0, 2.0, 2)] * 2
 
 
-def test_trends_over_team_size(tmp_path, significance):
-    """significance.py's trend table: Spearman's rho of the final scores with the team
-    size per (sweep, method, n_req), Holm over the sweep; cells short of seeds are left out."""
-    cells = {}
+def test_trends_over_team_size(tmp_path):
+    """paper-claims' trend table: Spearman's rho of the final scores with the team size per
+    (sweep, method, n_req), Holm over the sweep; cells short of seeds are left out."""
+    rows = []
     for size in (6, 9, 12, 15):
-        cells["fig8-9-paper", "max-critic", 4, size] = [size / 3, size / 3 + 0.1]  # rises
-        cells["fig8-9-paper", "average", 4, size] = [0.0, 0.0]  # flat: no trend
-        cells["fig8-9-paper", "mean-critic", 4, size] = [1.0] if size == 15 else [1.0, 2.0]
-    rows = significance.trends(cells)
-    assert [(r["method"], r["n"]) for r in rows] == [
+        for method, finals in (("max-critic", [size / 3, size / 3 + 0.1]),  # rises
+                               ("average", [0.0, 0.0]),  # flat: no trend
+                               ("mean-critic", [1.0] if size == 15 else [1.0, 2.0])):  # fmt: skip
+            rows += [{"sweep": "fig8-9-paper", "method": method, "n_req": "4",
+                      "n_rovers": str(size), "feedback": "D", "motion": "ideal",
+                      "variant": "", "final_G": str(g)} for g in finals]  # fmt: skip
+    rows.append({**rows[0], "motion": "physics", "final_G": "99"})  # not the idealised cell
+    doc = load_claims("paper-claims")[1]
+    trends = claim_trends(rows, doc)
+    assert [(r["method"], r["n"]) for r in trends] == [
         ("average", "2/2/2/2"),
         ("max-critic", "2/2/2/2"),
     ]
-    flat, rising = rows
+    flat, rising = trends
     # centred ranks of the sizes (-3, -3, -1, -1, 1, 1, 3, 3), of the scores -3.5 .. 3.5:
     # rho = 40 / sqrt(40 * 42), the largest |rho| the tied sizes allow
     assert flat["p_permutation"] == 1.0 and rising["rho"] == pytest.approx(40 / math.sqrt(1680))
@@ -318,8 +320,8 @@ def test_trends_over_team_size(tmp_path, significance):
     assert rising["p_permutation"] == pytest.approx(32 / 40320)
     assert (rising["p_holm"], rising["family_size"]) == (pytest.approx(64 / 40320), 2)
     assert rising["mean_6"] == pytest.approx(2.05)
-    significance.write_trends(rows, tmp_path / "trend")
+    write_claims(rows, {**doc, "comparisons": []}, "claims", tmp_path)
     assert (
         "| fig8-9-paper | max-critic | 4 | 2/2/2/2 | 2.05 | 3.05 | 4.05 | 5.05 | 0.976 |"
-        in (tmp_path / "trend.md").read_text()
+        in (tmp_path / "claims_trend.md").read_text()
     )

@@ -165,7 +165,19 @@ def test_planned_comparisons_of_the_sweep_file_with_holm_over_all(tmp_path, caps
 @pytest.mark.parametrize(
     ("table", "message"),
     [
-        ('[[comparisons]]\na = { method = "D" }\n', "comparisons[0]: needs exactly a and b"),
+        ('[[comparisons]]\na = { method = "D" }\n', "comparisons[0]: needs a and b"),
+        (
+            '[[comparisons]]\na = { method = "D" }\nb = { method = "G" }\nwhen = 1\n',
+            "comparisons[0]: needs a and b (and may have where)",
+        ),
+        (
+            '[[comparisons]]\na = { method = "D" }\nb = { method = "G" }\nwhere = { n_req = 2 }\n',
+            "comparisons[0].where: must be a table of grid fields and lists",
+        ),
+        (
+            '[[comparisons]]\na = { method = "D" }\nb = { method = "G" }\nwhere = { nreq = [2] }\n',
+            "nreq: unknown",
+        ),
         ('[[comparisons]]\na = { method = "D" }\nb = { method = "D" }\n', "pick the same runs"),
         ('[[comparisons]]\na = { methd = "D" }\nb = { method = "G" }\n', "methd: unknown"),
         ('[[comparisons]]\na = {}\nb = { method = "G" }\n', "comparisons[0].a: must be a"),

@@ -5,7 +5,7 @@ import csv
 
 import pytest
 
-from physrover.analysis.tables import compare_samples, final_scores, parse_compare
+from physrover.analysis.tables import compare_samples, parse_compare
 from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig
 from physrover.learn.ccea import stats_header
@@ -134,23 +134,3 @@ def test_bad_comparisons_are_one_line(tmp_path, capsys):
     assert main(["table", str(root), "--compare", "n_reqq=4,6"]) == 2
     assert "n_reqq: not a config field" in capsys.readouterr().err
     assert main(["table", str(root), "--last", "0"]) == 2
-
-
-def test_final_scores_by_variant_and_coupling(tmp_path):
-    # a study's runs.csv (physrover results); a sweep whose runs share one n_req has no
-    # n_req column, and its cells are keyed by ""
-    def variant(row):
-        return row["method"] + (f" [{row['feedback']}]" if row.get("feedback") else "")
-
-    rows = [("D", "", "1", "0", 2.5), ("D", "ID", "1", "0", 4.0), ("D", "ID", "1", "1", 3.0),
-            ("G", "", "2", "1", 1.5)]  # fmt: skip
-    with open(tmp_path / "runs.csv", "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(["sweep", "method", "feedback", "n_req", "seed", "final_G"])
-        writer.writerows([("s", m, fb, n, seed, g) for m, fb, n, seed, g in rows])
-    assert final_scores(tmp_path / "runs.csv", variant) == {
-        ("D", "1"): {"0": 2.5}, ("D [ID]", "1"): {"0": 4.0, "1": 3.0}, ("G", "2"): {"1": 1.5}
-    }  # fmt: skip
-    with open(tmp_path / "one.csv", "w", newline="") as f:
-        f.write("sweep,method,seed,final_G\ns,G,0,4.25\n")
-    assert final_scores(tmp_path / "one.csv", variant) == {("G", ""): {"0": 4.25}}

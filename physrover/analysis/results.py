@@ -42,6 +42,7 @@ from physrover.analysis.curve_data import (
     final_score,
     format_value,
     load_runs,
+    run_fields,
     scores_table,
 )
 from physrover.core.stats import mean_ci
@@ -202,10 +203,7 @@ def figures(result: SweepResults, out: Path, last: int, smooth: int) -> list[Pat
 
 def _planned(sweep_dir: Path, result: SweepResults, out: Path) -> list[str]:
     """The sweep's planned comparisons (``[[comparisons]]`` of the copy of its file in its
-    folder, :mod:`physrover.analysis.comparisons`) as ``NAME_significance.csv`` and
-    ``.md`` in ``out``; the messages to show."""
-    from physrover.analysis.comparisons import COLUMNS, planned_comparisons
-    from physrover.analysis.tables import comparisons_markdown, write_csv
+    folder) over its finished runs: :func:`write_planned`."""
     from physrover.experiment.sweep import SWEEP_COPY, Sweep
 
     copy = sweep_dir / SWEEP_COPY
@@ -215,23 +213,49 @@ def _planned(sweep_dir: Path, result: SweepResults, out: Path) -> list[str]:
         sweep = Sweep.load(copy)
     except Exception as exc:  # e.g. its imports, relative to where the file was
         return [f"{result.name}: planned comparisons not made: {copy}: {exc}"]
-    if not sweep.comparisons:
-        return []
     found = {run.path.name: run for run in result.runs}
     runs = []  # each finished run's fields: its own config, or an earlier machine's row
     for row in result.rows:
         run = found.get(row["run"])
         fields = {k: format_value(v) for k, v in run.fields.items()} if run else dict(row)
         runs.append({**fields, "final_G": row["final_G"]})
-    rows, skipped = planned_comparisons(
-        runs, sweep.comparisons, sweep.base, ["method", *result.grid]
-    )
+    return write_planned(runs, sweep, result.name, ["method", *result.grid], out)
+
+
+def write_planned(runs: list[dict], sweep, name: str, grid: list[str], out: Path) -> list[str]:
+    """``NAME_significance.csv`` and ``.md`` in ``out``: ``sweep``'s planned comparisons
+    (:mod:`physrover.analysis.comparisons`, Holm over all) over ``runs`` (each run's
+    fields and ``final_G``) in the cells of ``grid``; the messages to show."""
+    from physrover.analysis.comparisons import COLUMNS, planned_comparisons
+    from physrover.analysis.tables import comparisons_markdown, write_csv
+
+    if not sweep.comparisons:
+        return []
+    defaults = {k: format_value(v) for k, v in run_fields(sweep.base).items()}
+    rows, skipped = planned_comparisons(runs, sweep.comparisons, defaults, grid)
     if not rows:
-        return [*skipped, f"{result.name}: no planned comparison has 2 runs a side yet"]
-    path = write_csv(rows, COLUMNS, out / f"{result.name}_significance.csv")
+        return [*skipped, f"{name}: no planned comparison has 2 runs a side yet"]
+    path = write_csv(rows, COLUMNS, out / f"{name}_significance.csv")
     path.with_suffix(".md").write_text(comparisons_markdown(rows))
-    return [*skipped, f"{result.name}: {len(rows)} planned comparisons (Holm over all) in "
+    return [*skipped, f"{name}: {len(rows)} planned comparisons (Holm over all) in "
             f"{path.with_suffix('.md')}"]  # fmt: skip
+
+
+def sweep_comparisons(rows: list[dict], sweep_file: str | Path, out: Path) -> list[str]:
+    """A sweep file's planned comparisons over the rows of a runs.csv (``physrover
+    compare``; no run directory needed): the rows of its sweep, in the cells of their grid
+    columns (:func:`write_planned`)."""
+    from physrover.experiment.sweep import Sweep
+
+    sweep = Sweep.load(sweep_file)
+    mine = [row for row in rows if row.get("sweep") == sweep.name]
+    if not mine:
+        raise RunError(f"the runs.csv has no row of sweep {sweep.name}")
+    if not sweep.comparisons:
+        raise RunError(f"{sweep_file}: the sweep file plans no [[comparisons]]")
+    grid = [c for c in mine[0] if c not in LEAD + TAIL]
+    out.mkdir(parents=True, exist_ok=True)  # (write_planned writes nothing without a row)
+    return write_planned(mine, sweep, sweep.name, ["method", *grid], out)
 
 
 def read_rows(path: Path) -> list[dict]:

@@ -232,27 +232,3 @@ def write_csv(rows: list[dict], columns: list[str], path: Path) -> Path:
         for row in rows:
             writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in row.items()})
     return path
-
-
-def final_scores(runs_csv: Path, variant) -> dict[tuple[str, str], dict[str, float]]:
-    """``{(variant(row), n_req): {seed: final_G}}`` from a ``physrover results`` runs.csv:
-    what a study's planned comparisons are drawn from (n_req ``""`` where the sweep's runs
-    share one, which runs.csv then leaves out)."""
-    scores: dict[tuple[str, str], dict[str, float]] = defaultdict(dict)
-    with open(runs_csv, newline="") as f:
-        for row in csv.DictReader(f):
-            scores[(variant(row), row.get("n_req", ""))][row["seed"]] = float(row["final_G"])
-    return scores
-
-
-def write_significance(rows: list[dict], out: Path, lead: dict[str, str]) -> str:
-    """``significance.csv`` and ``significance.md`` of :func:`compare_samples` rows in
-    the folder ``out``; the Markdown table's first columns are ``lead`` (header: the rows'
-    key), then the comparison's. Returns the Markdown."""
-    write_csv(rows, list(rows[0]), out / "significance.csv")
-    lines = [markdown_header(*lead)]
-    lines += [f"| {' | '.join(str(r[k]) for k in lead.values())} | {significance_cells(r)} |"
-              for r in rows]  # fmt: skip
-    text = "\n".join(lines) + "\n"
-    (out / "significance.md").write_text(text)
-    return text

@@ -28,7 +28,7 @@ from physrover.cli.commands import (
     cmd_train,
 )
 from physrover.cli.lab_cmd import add_import_lab
-from physrover.cli.reports import cmd_curves, cmd_results, cmd_table
+from physrover.cli.reports import add_compare, cmd_curves, cmd_results, cmd_table
 from physrover.config import ConfigError
 from physrover.core import plugins
 from physrover.experiment.on_ray import ClusterLost
@@ -265,6 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     p.set_defaults(func=cmd_benchmarl)
 
+    add_compare(sub)
     add_import_lab(sub)
 
     p = sub.add_parser("bench", help="time the world or the learner (benchmarks, not tests)")

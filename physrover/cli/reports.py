@@ -1,5 +1,6 @@
-"""The commands that read run directories and report on them: ``physrover curves``,
-``table`` and ``results`` (one thin function each over :mod:`physrover.analysis`)."""
+"""The commands that read run directories (or their runs.csv) and report on them:
+``physrover curves``, ``table``, ``results`` and ``compare`` (one thin function each over
+:mod:`physrover.analysis`)."""
 
 from __future__ import annotations
 
@@ -95,3 +96,49 @@ def cmd_results(args: argparse.Namespace) -> int:
     rows = sum(len(r.rows) for r in results)
     print(f"results of {len(results)} sweep(s), {rows} runs: {out}")
     return 0
+
+
+def _is_claims(path: Path) -> bool:
+    """Whether ``path`` is a claims file (a TOML file without a [sweep] table)."""
+    import tomllib
+
+    try:
+        return path.is_file() and "sweep" not in tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise UsageError(f"{path}: {exc}") from None
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from physrover.analysis.claim_tests import SHIPPED, load_claims, write_claims
+    from physrover.analysis.results import read_rows, sweep_comparisons
+
+    runs = Path(args.runs_csv)
+    if not runs.is_file():
+        raise UsageError(f"{runs}: no such file (a runs.csv of physrover results)")
+    rows = read_rows(runs)
+    out = Path(args.out) if args.out else runs.parent
+    if args.file == SHIPPED or _is_claims(Path(args.file)):
+        name, doc = load_claims(args.file)
+        said = write_claims(rows, doc, name, out)
+    else:  # a sweep file (or a shipped sweep's name): its [[comparisons]]
+        said = sweep_comparisons(rows, args.file, out)
+    print("\n".join(said))
+    return 0
+
+
+def add_compare(sub) -> None:
+    """The ``compare`` command's parser, under ``sub``."""
+    p = sub.add_parser(
+        "compare",
+        help="planned comparisons (Holm) over a runs.csv, from a sweep or claims file",
+        description="Tests the comparisons FILE plans over the runs RUNS_CSV lists (a "
+        "runs.csv of physrover results, or one pooled over sweeps): a sweep file's (or a "
+        "shipped sweep's) [[comparisons]] over its own rows, into NAME_significance.md/.csv; "
+        "or a claims file's (paper-claims: the paper's Section 5) comparisons and trends "
+        "over every sweep's rows, into NAME_significance and NAME_trend. Needs no run "
+        "directory: the committed tables regenerate from the committed runs.csv.",
+    )
+    p.add_argument("runs_csv", help="runs.csv (physrover results, or experiments' pooled one)")
+    p.add_argument("file", help="a sweep file or name, a claims file, or paper-claims")
+    p.add_argument("--out", help="where to write (default: beside RUNS_CSV)")
+    p.set_defaults(func=cmd_compare)

@@ -82,7 +82,8 @@ class Sweep:
     (:mod:`physrover.core.plugins`)."""
     comparisons: tuple[dict[str, dict[str, Any]], ...] = ()
     """``[[comparisons]]``: the planned comparisons ``physrover results`` tests, each
-    ``{"a": {field: value}, "b": {field: value}}`` (:mod:`physrover.analysis.comparisons`)."""
+    ``{"a": {field: value}, "b": {field: value}}`` and an optional ``"where"``, ``{field:
+    [values]}`` (:mod:`physrover.analysis.comparisons`)."""
     tables: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
     """The base's tables of methods other than the base's own (``[base.sampled]`` when the
     base method is the max critic), as ``((section, ((field, value), ...)), ...)``: the
@@ -286,15 +287,23 @@ def _comparisons(given: Any, base: RunConfig, tables: dict,
     out = []
     for k, table in enumerate(given):
         where = f"comparisons[{k}]"
-        if not isinstance(table, dict) or set(table) != {"a", "b"}:
-            raise ConfigError(where, 'needs exactly a and b, e.g. a = { method = "D" }')
+        if not isinstance(table, dict) or not {"a", "b"} <= set(table) <= {"a", "b", "where"}:
+            raise ConfigError(where, 'needs a and b (and may have where), e.g. '
+                              'a = { method = "D" }')  # fmt: skip
         for side in ("a", "b"):
             if not isinstance(table[side], dict) or not table[side]:
                 raise ConfigError(f"{where}.{side}", "must be a table of config fields")
             _valid_somewhere(base, tables, runs, table[side])
         if table["a"] == table["b"]:
             raise ConfigError(where, "a and b pick the same runs")
-        out.append({"a": dict(table["a"]), "b": dict(table["b"])})
+        cells = table.get("where", {})
+        if not isinstance(cells, dict) or not all(isinstance(v, list) and v
+                                                  for v in cells.values()):  # fmt: skip
+            raise ConfigError(f"{where}.where", "must be a table of grid fields and lists of "
+                              "values, e.g. where = { n_req = [5, 6] }")  # fmt: skip
+        for value in itertools.product(*cells.values()):
+            _valid_somewhere(base, tables, runs, dict(zip(cells, value, strict=True)))
+        out.append({k: dict(v) for k, v in table.items()})
     return tuple(out)
 
 
