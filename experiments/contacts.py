@@ -31,7 +31,7 @@ import argparse
 import numpy as np
 
 from physrover.config import DomainConfig, parse_override
-from physrover.domain.motion.physics import pair_overlaps as overlaps
+from physrover.domain.motion.separation import pair_overlaps as overlaps
 from physrover.envs.gymnasium_env import RoverVectorEnv
 
 

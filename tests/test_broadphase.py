@@ -11,8 +11,7 @@ import pytest
 from physrover import DomainConfig, RoverVectorEnv
 from physrover.domain.broadphase import GRID_MIN_POINTS, near_pairs_all, near_pairs_grid
 from physrover.domain.motion.contacts import speculative_contacts
-from physrover.domain.motion.physics import pair_overlaps
-from physrover.domain.motion.separation import separate_teams
+from physrover.domain.motion.separation import pair_overlaps, separate_teams
 
 PHYSICS = DomainConfig(motion="physics").replace(collisions=True)
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from physrover import DomainConfig, RoverVectorEnv
-from physrover.domain.motion.physics import pair_overlaps
+from physrover.domain.motion.separation import pair_overlaps
 
 PHYSICS = DomainConfig(motion="physics").replace(collisions=True)
 

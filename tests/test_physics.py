@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 from physrover import DomainConfig, RoverEnv, RoverVectorEnv
 from physrover.config import ConfigError
-from physrover.domain.motion.physics import pair_overlaps, separate
+from physrover.domain.motion.separation import pair_overlaps, separate
 from physrover.domain.world import RoverWorld, StartOverrides
 
 

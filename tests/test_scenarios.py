@@ -232,7 +232,7 @@ def test_spawn_density_grows_the_disc_with_the_team_and_a_thousand_rovers_start_
 
     from physrover import DomainConfig, RoverVectorEnv
     from physrover.config import ConfigError
-    from physrover.domain.motion.physics import pair_overlaps
+    from physrover.domain.motion.separation import pair_overlaps
 
     paper = DomainConfig(n_rovers=1000).scenario
     assert paper.disc_radius(1000) == 1.5  # off by default: the paper's disc at any R

@@ -88,14 +88,17 @@ class WorldState(NamedTuple):
         return state
 
 
-def start_episode(state: WorldState) -> None:
-    """Forget every capture in ``state``: the start of an episode, before step 0 is scored."""
-    state.poi_counts[:] = 0
-    state.in_range[:] = False
-    state.captured[:] = False
-    state.captured_without[:] = False
-    state.capture_step[:] = -1
-    state.score[:] = 0.0
+def start_episode(state: WorldState, teams: np.ndarray | None = None) -> None:
+    """Forget every capture in ``state``: the start of an episode, before step 0 is scored;
+    of the ``teams`` (an (E,) bool mask) only, if given."""
+    if teams is None:
+        teams = slice(None)
+    state.poi_counts[teams] = 0
+    state.in_range[:, teams] = False
+    state.captured[teams] = False
+    state.captured_without[teams] = False
+    state.capture_step[teams] = -1
+    state.score[teams] = 0.0
 
 
 __all__ = ["WorldState", "start_episode"]

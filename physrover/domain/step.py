@@ -35,7 +35,7 @@ from numba import types
 from numba.extending import overload
 
 from physrover.core.compiled import jit, jit_inline
-from physrover.domain.motion.ideal import all_commands_ok, move_team
+from physrover.domain.motion.ideal import all_commands_ok, commands_ok, move_team
 from physrover.domain.scoring.captures import score_team
 from physrover.domain.sensing.classes import sense_classes, sensing_scratch
 from physrover.domain.sensing.density import sense_scratch, sense_team
@@ -158,4 +158,25 @@ def step_teams(commands, t, plan, actions, obs, positions, headings, *state):
     return True
 
 
-__all__ = ["StepScratch", "step_scratch", "step_team", "step_teams"]
+@jit
+def step_teams_at(commands, t, plan, actions, obs, positions, headings, *state):
+    """Step ``t[e]`` of each team e with ``t[e] >= 0`` (0: its reset's state 0, nothing
+    moves), each at its own step (teams reset apart, a vector env's ``reset_mask``); the
+    teams with ``t[e] < 0`` are left as they are. ``t`` (E,) int64; ``actions`` (T, E, R, 2),
+    ``positions`` (T + 1, E, R, 2) and ``headings`` (T + 1, E, R) the world's whole
+    records, written at each team's own row; the rest as :func:`step_teams`. Returns False,
+    having changed nothing, if a command of a team that moves is NaN."""
+    for e in range(commands.shape[0]):
+        if t[e] > 0 and not commands_ok(commands[e]):
+            return False
+    st = WorldState(*state)
+    scratch = step_scratch(plan, st.cos_h.shape[1])
+    for e in range(st.cos_h.shape[0]):
+        te = t[e]
+        if te >= 0:
+            step_team(e, te, commands, plan, st, actions[max(te - 1, 0)], obs, positions[te],
+                      headings[te], True, scratch, te > 0)  # fmt: skip
+    return True
+
+
+__all__ = ["StepScratch", "step_scratch", "step_team", "step_teams", "step_teams_at"]

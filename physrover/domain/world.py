@@ -19,10 +19,9 @@ equations live in the tests (``tests/oracles.py``), which compare the two.
 
 from __future__ import annotations
 
+import inspect
 import warnings
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -34,61 +33,12 @@ from physrover.domain.motion.ideal import clip_teams
 from physrover.domain.plan import build_plan
 from physrover.domain.scenarios import StartState
 from physrover.domain.scoring.difference import difference
+from physrover.domain.start import StartOverrides, write_start
 from physrover.domain.state import WorldState, start_episode
-from physrover.domain.step import step_teams
+from physrover.domain.step import step_teams, step_teams_at
 
 ACTION_DIM = 2
 """Action components per rover: (forward, left) in the rover's frame."""
-
-
-@dataclass(frozen=True)
-class StartOverrides:
-    """Parts of a start state given explicitly (``reset(options=...)``); any field left
-    ``None`` is drawn by the scenario as usual.
-
-    Each array is given either for one team (shapes below) or with a leading team axis E.
-
-    Attributes:
-        rover_positions: (R, 2) world positions.
-        rover_headings: (R,) radians.
-        poi_positions: (K, 2) world positions.
-        poi_values: (K,) POI values (positive).
-    """
-
-    rover_positions: Any = None
-    rover_headings: Any = None
-    poi_positions: Any = None
-    poi_values: Any = None
-
-    @classmethod
-    def from_options(cls, options: Mapping[str, Any] | None) -> StartOverrides | None:
-        """Build from a gymnasium ``reset(options=...)`` dict; unknown keys are errors."""
-        if not options:
-            return None
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(options) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown reset option {unknown[0]!r}; known options: {', '.join(sorted(known))}"
-            )
-        return cls(**options)
-
-
-def _given(given: Any, drawn: np.ndarray) -> Any:
-    """An override if it is given, else the drawn value."""
-    return drawn if given is None else given
-
-
-def _team_array(name: str, value: Any, shape: tuple[int, ...], n_teams: int) -> np.ndarray:
-    """``value`` as a float64 array of shape (E, *shape), broadcast from ``shape`` if needed."""
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape == shape:
-        arr = np.broadcast_to(arr, (n_teams, *shape))
-    elif arr.shape != (n_teams, *shape):
-        raise ValueError(f"{name} must have shape {shape} or {(n_teams, *shape)}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite")
-    return arr
 
 
 class RoverWorld:
@@ -148,12 +98,30 @@ class RoverWorld:
         """Under the scenario's redraw = "generation", the last this many teams draw their own
         start states (the CCEA's evaluation episodes); the others share one."""
         self._fixed_start: StartState | None = None  # redraw = "never"
-        self.t = -1  # not reset yet
+        self.team_t = np.full(self.n_teams, -1, dtype=np.int64)
+        """(E,) the steps each team has taken in its episode (-1 before its first reset),
+        all equal to :attr:`t` unless some teams were reset apart (``reset(..., teams=)``)."""
+        self._t: int | None = -1  # the teams' common step (None while they differ)
+        self._last_obs = np.zeros((self.n_teams, self.n_rovers, self.obs_dim), dtype=np.float32)
+        self._bound_at, self._bound_at_plan = None, None  # step_teams_at, once teams differ
+
+    @property
+    def t(self) -> int:
+        """The steps taken in the episode (-1 before the first reset), the same in every
+        team; a RuntimeError while teams reset apart are at different steps (read
+        :attr:`team_t`)."""
+        if self._t is None:
+            raise RuntimeError("the teams are at different steps (some were reset apart): "
+                               "read team_t")  # fmt: skip
+        return self._t
 
     # -- state -------------------------------------------------------------------------------
 
     def reset(
-        self, rngs: Sequence[np.random.Generator], overrides: StartOverrides | None = None
+        self,
+        rngs: Sequence[np.random.Generator],
+        overrides: StartOverrides | None = None,
+        teams: np.ndarray | None = None,
     ) -> np.ndarray:
         """Start a new episode in every team; returns the (E, R, n_obs) float32 observations.
 
@@ -161,32 +129,33 @@ class RoverWorld:
         state depends only on its own generator), then shares draws as its ``redraw`` mode
         says (:mod:`physrover.domain.scenarios`). It draws even where ``overrides`` give
         parts of the start, so the generators advance identically with and without them.
+
+        ``teams``, an (E,) bool mask (a vector env's ``reset_mask``): only those teams start
+        again, each as a reset of it alone would start it (their generators alone draw, under
+        ``redraw = "episode"`` or ``"never"``); the others keep their state and step, and
+        their rows of the returned observations are their last ones.
         """
         if len(rngs) != self.n_teams:
             raise ValueError(f"need one generator per team ({self.n_teams}), got {len(rngs)}")
-        e, r, k = self.n_teams, self.n_rovers, self.n_pois
-        start = self._draw(rngs)
-        o = overrides or StartOverrides()
-        state = self.state
-        state.rover_positions[:] = _team_array(
-            "rover_positions", _given(o.rover_positions, start.rover_positions), (r, 2), e
-        )
-        state.rover_headings[:] = _team_array(
-            "rover_headings", _given(o.rover_headings, start.rover_headings), (r,), e
-        )
-        state.poi_positions[:] = _team_array(
-            "poi_positions", _given(o.poi_positions, start.poi_positions), (k, 2), e
-        )
-        values = _team_array("poi_values", _given(o.poi_values, start.poi_values), (k,), e)
-        if np.any(values <= 0):
-            raise ValueError("poi_values must be positive")
-        state.poi_values[:] = values
-        self.dynamics.reset(state)  # may push overlapping spawns apart
-        start_episode(state)
+        teams = None if teams is None or self._mask(teams).all() else self._mask(teams)
+        if teams is not None and self.config.scenario.redraw == "generation":
+            raise ValueError(
+                "teams reset apart need the scenario's redraw = 'episode' or "
+                "'never' (under 'generation' a reset's teams share a draw)"
+            )
+        rows = slice(None) if teams is None else np.flatnonzero(teams)
+        start = self._draw(rngs if teams is None else [rngs[e] for e in rows])
+        write_start(self.state, rows, start, overrides, self.n_teams)
+        if teams is None:
+            self.dynamics.reset(self.state)  # may push overlapping spawns apart
+        else:  # their generators alone drew
+            self._apart(self.dynamics.reset)(self.state, teams=teams)
+        start_episode(self.state, teams)
         if self.plan.step.rules is not None:
-            self.plan.step.rules.start()
-        self.t = 0
-        return self._step(self._clipped, 0)  # state 0: sensed, scored and recorded
+            self.plan.step.rules.start(teams)
+        if teams is None:
+            return self._step(self._clipped, 0)  # state 0: sensed, scored and recorded
+        return self._step_at(self._clipped, np.where(teams, 0, -1))
 
     def _draw(self, rngs: Sequence[np.random.Generator]) -> StartState:
         """The scenario's start states for this reset, under its redraw mode."""
@@ -219,6 +188,8 @@ class RoverWorld:
     def step(self, actions: np.ndarray) -> np.ndarray:
         """Apply (E, R, 2) actions (clipped to [-1, 1]); returns (E, R, n_obs) float32
         observations."""
+        if self._t is None:  # teams at different steps
+            return self.step_teams(actions, np.ones(self.n_teams, dtype=bool))
         if self.t < 0:
             raise RuntimeError("call reset() before step()")
         if self.t >= self.config.steps:
@@ -237,6 +208,65 @@ class RoverWorld:
         # state): one compiled step for every dtype a caller passes
         return self._step(np.array(actions, dtype=np.float64), t + 1)
 
+    def step_teams(self, actions: np.ndarray, teams: np.ndarray) -> np.ndarray:
+        """Step the ``teams`` (an (E,) bool mask) alone, each from its own step
+        (:attr:`team_t`), under their rows of the (E, R, 2) ``actions``; the other teams
+        keep their state, and their rows of the returned observations are their last."""
+        teams = self._mask(teams)
+        over = teams & ((self.team_t < 0) | (self.team_t >= self.config.steps))
+        if over.any():
+            raise RuntimeError(f"teams {np.flatnonzero(over).tolist()} have no step to take "
+                               "(reset them)")  # fmt: skip
+        actions = np.asarray(actions)
+        expected = (self.n_teams, self.n_rovers, ACTION_DIM)
+        if actions.shape != expected:
+            raise ValueError(f"actions must have shape {expected}, got {actions.shape}")
+        commands = np.where(teams[:, None, None], actions, 0.0).astype(np.float64)
+        if self.plan.step.motion is None:  # a motion model stepped from Python moves first
+            record = np.empty(commands.shape, dtype=np.float32)
+            if not clip_teams(commands, self._clipped, record):
+                raise ValueError("actions contain NaN")
+            self._apart(self.dynamics.step)(self.state, self._clipped, teams=teams)
+            for e in np.flatnonzero(teams):
+                self.actions[self.team_t[e], e] = record[e]
+            commands = self._clipped
+        return self._step_at(commands, np.where(teams, self.team_t + 1, -1))
+
+    def _mask(self, teams) -> np.ndarray:
+        mask = np.asarray(teams)
+        if mask.shape != (self.n_teams,) or mask.dtype != bool or not mask.any():
+            raise ValueError(f"teams must be an ({self.n_teams},) bool mask with a True, got "
+                             f"{mask.dtype} {mask.shape}")  # fmt: skip
+        return mask
+
+    def _apart(self, method):
+        """The motion model's ``reset`` or ``step``, if it moves some teams alone."""
+        if "teams" not in inspect.signature(method).parameters:
+            raise ValueError(f"motion model {self.config.motion!r} cannot move some teams "
+                             f"alone: its {method.__name__} takes no teams mask")  # fmt: skip
+        return method
+
+    def _step_at(self, commands: np.ndarray, at: np.ndarray) -> np.ndarray:
+        """The compiled step of each team e to its state ``at[e]`` (0: its reset's state 0;
+        -1: left as it is; :func:`~physrover.domain.step.step_teams_at`) and its records."""
+        obs = self._last_obs.copy()
+        args = (commands, at, self.plan.step, self.actions, obs, self.position_history,
+                self.heading_history, self.state)  # fmt: skip
+        if self._bound_at_plan is not self.plan:
+            self._bound_at = bind(step_teams_at, *args, packed=True)
+            self._bound_at_plan = self.plan
+        if not self._bound_at(*args):
+            raise ValueError("actions contain NaN")
+        self._observe_in_python(obs)
+        moved = at >= 0
+        self.team_t[moved] = at[moved]
+        rows = np.flatnonzero(moved & (at < self.config.steps))
+        self.observations[at[rows], rows] = obs[rows]
+        common = self.team_t[0]
+        self._t = int(common) if (self.team_t == common).all() else None
+        self._last_obs = obs
+        return obs
+
     def _step(self, commands: np.ndarray, t: int) -> np.ndarray:
         """The compiled step to state ``t`` (state 0 at reset: nothing moves) and its
         records, from (E, R, 2) float64 C-contiguous ``commands``; returns the new
@@ -252,7 +282,8 @@ class RoverWorld:
         if not ok:
             raise ValueError("actions contain NaN")
         self._observe_in_python(obs)
-        self.t = t
+        self._t, self._last_obs = t, obs
+        self.team_t[:] = t
         if t < self.config.steps:
             self.observations[t] = obs
         return obs
@@ -285,7 +316,8 @@ class RoverWorld:
                      self.heading_history, *self.state)  # fmt: skip
         if not ok:
             raise ValueError("actions contain NaN")
-        self.t = self.config.steps
+        self._t = self.config.steps
+        self.team_t[:] = self._t
 
     @property
     def n_req(self) -> np.ndarray:
@@ -298,8 +330,10 @@ class RoverWorld:
         compiled step reads the plan's array, so nothing recompiles; D, D++ and influence
         credit read it too. Refused once an episode has stepped (a reset's state 0 was
         scored at the old coupling: reset again before stepping)."""
-        if 0 < self.t < self.config.steps:
-            raise RuntimeError(f"the coupling changes between episodes, not at step {self.t}")
+        playing = (self.team_t > 0) & (self.team_t < self.config.steps)
+        if playing.any():
+            raise RuntimeError("the coupling changes between episodes, not at step "
+                               f"{self.team_t[playing].max()}")  # fmt: skip
         values = np.broadcast_to(np.asarray(n_req), self.n_req.shape)
         if not np.issubdtype(values.dtype, np.integer) or values.min() < 1 or \
                 values.max() > self.n_rovers:  # fmt: skip
@@ -336,7 +370,15 @@ class RoverWorld:
 
     @property
     def done(self) -> bool:
-        return self.t >= self.config.steps
+        """Whether every team's episode is over."""
+        if self._t is not None:
+            return self._t >= self.config.steps
+        return bool((self.team_t >= self.config.steps).all())
+
+    @property
+    def team_done(self) -> np.ndarray:
+        """(E,) bool: whether each team's episode is over."""
+        return self.team_t >= self.config.steps
 
     @property
     def G(self) -> np.ndarray:

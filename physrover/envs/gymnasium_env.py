@@ -192,15 +192,32 @@ def _team_generators(seed: int | Sequence[int] | None, n: int) -> list[np.random
     return [seeding.np_random(s)[0] for s in seeds]
 
 
+def _reset_mask(mask: Any, n: int) -> np.ndarray | None:
+    """``options["reset_mask"]`` checked as gymnasium's SyncVectorEnv checks it (None if
+    not given, or if it resets every team)."""
+    if mask is None:
+        return None
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
+        raise TypeError(f"options['reset_mask'] must be a numpy bool array of shape ({n},), "
+                        f"got {type(mask).__name__} {getattr(mask, 'shape', '')}")  # fmt: skip
+    if not mask.any():
+        raise ValueError("options['reset_mask'] must have at least one True value")
+    return None if mask.all() else mask
+
+
 class RoverVectorEnv(VectorEnv):
     """E teams of the multi-rover domain, natively batched (see :class:`RoverEnv`).
 
     Spaces per team are those of :class:`RoverEnv`; batched spaces add a leading team axis.
     As with gymnasium's ``SyncVectorEnv`` seeding, after ``reset(seed=s)`` team i starts and
     steps exactly like ``RoverEnv`` after ``reset(seed=s + i)``; ``seed`` may also be a list
-    of E seeds. Autoreset mode is ``NEXT_STEP``: the ``step`` after the last step of an
-    episode resets every team (all teams run in lock step, so they end together) and
-    returns the new first observations with zero rewards.
+    of E seeds. Autoreset mode is ``NEXT_STEP``: the ``step`` after the last step of a
+    team's episode resets that team and returns its new first observations with zero
+    reward (the others step). ``reset(options={"reset_mask": mask})`` resets the teams of
+    the (E,) bool ``mask`` alone, as gymnasium's vector API defines it: each starts as a
+    reset of it alone would (its own generator, reseeded with ``seed + i`` if ``seed`` is
+    given), the others keep their state, and its infos are masked to the reset teams.
+    Teams then run at different steps, each ending after its own ``steps`` steps.
 
     Infos hold ``"G"`` (E,), ``"rover_positions"`` (E, R, 2), ``"rover_headings"`` (E, R)
     and ``"D"`` (E, R), each with its ``"_name"`` mask as gymnasium's vector envs do, at
@@ -241,24 +258,22 @@ class RoverVectorEnv(VectorEnv):
         self.world.fresh_teams = int(fresh_teams)
         self._rngs: list[np.random.Generator] | None = None
         self._last_G = np.zeros(self.num_envs)
-        self._needs_reset = False
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)  # NEXT_STEP: reset at next step
 
-    def _infos(self, G: np.ndarray) -> dict[str, Any]:
+    def _infos(self, G: np.ndarray, teams: np.ndarray | None = None) -> dict[str, Any]:
+        """The infos of the ``teams`` (an (E,) mask; every team if None)."""
         w = self.world
-        every = np.ones(self.num_envs, dtype=bool)
-        infos = {
-            "G": G,
-            "_G": every,
-            "rover_positions": w.rover_positions.copy(),
-            "_rover_positions": every,
-            "rover_headings": w.rover_headings.copy(),
-            "_rover_headings": every,
-            # Every step (keys never change): zeros, masked out, until the last step, as
-            # gymnasium's vector envs fill a key an env lacks.
-            "D": w.D.copy() if w.done else np.zeros((self.num_envs, w.config.n_rovers)),
-            "_D": every if w.done else ~every,
-        }
-        return infos
+        every = np.ones(self.num_envs, dtype=bool) if teams is None else teams
+        done = w.team_done & every
+        D = np.zeros((self.num_envs, w.config.n_rovers))
+        if done.any():
+            D[done] = w.D[done]
+        return {"G": G, "_G": every,
+                "rover_positions": w.rover_positions.copy(), "_rover_positions": every,
+                "rover_headings": w.rover_headings.copy(), "_rover_headings": every,
+                # Every step (keys never change): zeros, masked out, until a team's last
+                # step, as gymnasium's vector envs fill a key an env lacks.
+                "D": D, "_D": done}  # fmt: skip
 
     def play_episode(self, policy, headings: bool = True) -> RoverWorld:
         """One whole episode of every team under ``policy`` (``obs (E, R, n_obs) -> actions
@@ -272,7 +287,7 @@ class RoverVectorEnv(VectorEnv):
         if self._rngs is None:
             raise RuntimeError("call reset(seed=...) first: the generators are made there")
         obs = self._reset_world(None)
-        self._needs_reset = True  # also if the policy fails mid-episode: the next step resets
+        self._autoreset[:] = True  # also if the policy fails mid-episode: the next step resets
         play = getattr(policy, "play", None)
         if play is not None:
             play(self.world, obs, headings)
@@ -282,17 +297,26 @@ class RoverVectorEnv(VectorEnv):
         self._last_G = self.world.G
         return self.world
 
-    def _reset_world(self, options: dict[str, Any] | None) -> np.ndarray:
-        obs = self.world.reset(self._rngs, StartOverrides.from_options(options))
-        self._last_G = np.zeros(self.num_envs)
-        self._needs_reset = False
+    def _reset_world(self, options: dict[str, Any] | None, teams=None) -> np.ndarray:
+        """Reset every team, or the ``teams`` of an (E,) bool mask alone."""
+        obs = self.world.reset(self._rngs, StartOverrides.from_options(options), teams)
+        every = slice(None) if teams is None else teams
+        self._last_G[every] = 0.0
+        self._autoreset[every] = False
         return obs
 
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
+        options = dict(options or {})
+        mask = _reset_mask(options.pop("reset_mask", None), self.num_envs)
         if seed is not None or self._rngs is None:
-            self._rngs = _team_generators(seed, self.num_envs)
+            fresh = _team_generators(seed, self.num_envs)
+            if self._rngs is None or mask is None:
+                self._rngs = fresh
+            else:  # the reset teams' generators only, as SyncVectorEnv reseeds its envs
+                old = self._rngs
+                self._rngs = [f if m else g for f, g, m in zip(fresh, old, mask, strict=True)]
             self._np_random = self._rngs[0]
-        return self._reset_world(options), self._infos(self.world.G)
+        return self._reset_world(options, mask), self._infos(self.world.G, mask)
 
     def rng_states(self) -> list[dict]:
         """The state of each team's generator (JSON-serialisable), for checkpoints."""
@@ -310,14 +334,19 @@ class RoverVectorEnv(VectorEnv):
     def step(self, actions):
         if self._rngs is None:
             raise RuntimeError("call reset() before step()")
-        n = self.num_envs
-        if self._needs_reset:  # NEXT_STEP autoreset: this call only resets
+        n, auto = self.num_envs, self._autoreset.copy()  # the reset below clears its rows
+        if auto.all():  # NEXT_STEP autoreset of every team: this call only resets
             obs = self._reset_world(None)
             zeros = np.zeros(n, dtype=bool)
             return obs, np.zeros(n), zeros, zeros.copy(), self._infos(self.world.G)
-        obs = self.world.step(actions)
+        if auto.any():  # those teams reset, the others step
+            self._reset_world(None, auto)
+            obs = self.world.step_teams(actions, ~auto)
+        else:
+            obs = self.world.step(actions)
         G = self.world.G
         rewards, self._last_G = G - self._last_G, G
-        truncated = np.full(n, self.world.done)
-        self._needs_reset = self.world.done
+        rewards[auto], self._last_G[auto] = 0.0, 0.0  # reset this call: as a reset returns
+        truncated = self.world.team_done
+        self._autoreset = truncated.copy()
         return obs, rewards, np.zeros(n, dtype=bool), truncated, self._infos(G)

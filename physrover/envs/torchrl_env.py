@@ -16,7 +16,9 @@ and the done flags ``"done"``, ``"terminated"`` (always False) and ``"truncated"
 ``steps`` steps), (E, 1) bool. With agent classes (``[[agents]]``) there is one group per
 class, named after it (as VMAS gives heterogeneous agents groups of their own), each with
 its agents' observations at its class's size (``("uav", "observation")`` (E, 2, 12)).
-All teams run in lock step, so a reset resets them all.
+A reset resets every team, or those TorchRL's ``"_reset"`` entry (E, 1) names (a rollout's
+done teams, for example), each as a reset of it alone would; teams then run at different
+steps (:class:`RoverVectorEnv`'s ``reset_mask``).
 The batch moves between numpy and torch as whole arrays (``torch.from_numpy``): no Python
 loop over teams or rovers. Seeding: ``set_seed(s)``, then the next reset seeds team i with
 ``s + i``, as :class:`RoverVectorEnv` does; later resets continue the teams' generators.
@@ -114,7 +116,11 @@ class RoverTorchEnv(EnvBase):
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         seed, self._seed = self._seed, None  # a set seed seeds the next reset only
-        obs, infos = self.vector_env.reset(seed=seed)
+        options = None
+        if tensordict is not None and "_reset" in tensordict.keys():
+            mask = tensordict.get("_reset").reshape(-1).cpu().numpy().astype(bool)
+            options = None if mask.all() else {"reset_mask": mask}
+        obs, infos = self.vector_env.reset(seed=seed, options=options)
         source = {**self._groups(obs, infos), **self._flags(np.zeros(self.batch_size[0]))}
         return TensorDict(source, batch_size=self.batch_size, device=self.device)
 

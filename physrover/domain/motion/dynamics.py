@@ -44,16 +44,24 @@ class Dynamics:
         self.config = config
         self.n_teams = int(n_teams)
 
-    def reset(self, state) -> None:
+    def reset(self, state, teams: np.ndarray | None = None) -> None:
         """Start an episode from the start positions and headings in ``state``; may adjust
         them (the physical model pushes overlapping rovers apart). Must set ``cos_h``,
-        ``sin_h`` and ``rover_velocities``; the default sets them (at rest)."""
-        heading_trig(state.rover_headings, state.cos_h, state.sin_h)
-        state.rover_velocities[:] = 0.0
+        ``sin_h`` and ``rover_velocities``; the default sets them (at rest). ``teams``, an
+        (E,) bool mask: only those teams start again (a vector env's ``reset_mask``), the
+        others keep their state; a model whose ``reset`` takes no ``teams`` cannot."""
+        if teams is None:
+            heading_trig(state.rover_headings, state.cos_h, state.sin_h)
+        else:  # those teams' rows only: a moved team's cosines are its move's, not cos(h)
+            cos_h, sin_h = state.cos_h[teams], state.sin_h[teams]
+            heading_trig(state.rover_headings[teams], cos_h, sin_h)
+            state.cos_h[teams], state.sin_h[teams] = cos_h, sin_h
+        state.rover_velocities[slice(None) if teams is None else teams] = 0.0
 
-    def step(self, state, actions: np.ndarray) -> None:
+    def step(self, state, actions: np.ndarray, teams: np.ndarray | None = None) -> None:
         """Move the rovers of ``state`` by one environment step under ``actions`` (E, R, 2),
-        clipped to [-1, 1], float64."""
+        clipped to [-1, 1], float64; of the ``teams`` (an (E,) bool mask) only, if given
+        (the others keep their state; a model whose ``step`` takes no ``teams`` cannot)."""
         raise NotImplementedError
 
 
@@ -74,11 +82,12 @@ class Ideal(Dynamics):
         super().__init__(config, n_teams)
         self.roles = Roles.build(config)  # agent classes' speeds, frames, gates, bounds
 
-    def step(self, state, actions: np.ndarray) -> None:
+    def step(self, state, actions: np.ndarray, teams: np.ndarray | None = None) -> None:
         record = np.empty(actions.shape, dtype=np.float32)
         free = np.ones(actions.shape[1], dtype=np.bool_)
         for e in range(actions.shape[0]):
-            move_team(e, actions, state, record, True, self.roles, free)
+            if teams is None or teams[e]:
+                move_team(e, actions, state, record, True, self.roles, free)
 
 
 def compiled_motion(dynamics: Dynamics) -> bool:

@@ -110,13 +110,20 @@ _ALL = _STATE | _MOTION  # x, y, angle, vx, vy, w
 _FORCES = pb.BodyFields.FORCE | pb.BodyFields.TORQUE  # fx, fy, torque
 
 
-def pair_overlaps(positions: np.ndarray, radius: float) -> np.ndarray:
-    """(E, R (R - 1) / 2) overlap of every pair of rovers of each team, as a fraction of a
-    diameter: ``max(0, 2 r - distance) / (2 r)`` (0 apart or touching, 1 coincident)."""
-    d = positions[:, :, None, :] - positions[:, None, :, :]
-    dist = np.sqrt((d**2).sum(-1))
-    i, j = np.triu_indices(positions.shape[1], 1)
-    return np.maximum(0.0, 2 * radius - dist[:, i, j]) / (2 * radius)
+_EVERY = slice(None)
+"""Every team's rows (a basic slice: views, the arrays a step without a mask writes)."""
+
+
+def _rows(teams: np.ndarray | None, uses_pymunk: bool):
+    """The rows of the teams a reset or step moves: every team, or the (E,) bool mask
+    ``teams``, which pymunk cannot honour (one space holds every team's bodies and their
+    contacts' caches)."""
+    if teams is None:
+        return _EVERY
+    if uses_pymunk:
+        raise ValueError("the physical model with walls or obstacles (pymunk) resets and "
+                         "steps all teams together, not some alone")  # fmt: skip
+    return np.asarray(teams, dtype=bool)
 
 
 @register_dynamics
@@ -311,32 +318,38 @@ class PhysicsMotion(Dynamics):
 
     # -- motion model interface --------------------------------------------------------------
 
-    def reset(self, state) -> None:
-        """Place the rovers of ``state`` at rest (overlapping spawns pushed apart)."""
-        state.rover_positions[:] = self._place(state.rover_positions, state.rover_headings)
-        state.rover_velocities[:] = 0.0
+    def reset(self, state, teams: np.ndarray | None = None) -> None:
+        """Place the rovers of ``state`` at rest (overlapping spawns pushed apart); of the
+        ``teams`` (an (E,) bool mask) only, if given (compiled in open space only)."""
+        rows = _rows(teams, self.uses_pymunk)
+        state.rover_positions[rows] = self._place(state.rover_positions[rows],
+                                                  state.rover_headings[rows], rows)  # fmt: skip
+        state.rover_velocities[rows] = 0.0
         heading_trig(state.rover_headings, state.cos_h, state.sin_h)
 
-    def step(self, state, actions: np.ndarray) -> None:
-        """Advance one environment step under the (E, R, 2) clipped commands."""
-        positions, headings, velocities = self.advance(state, actions)
-        state.rover_positions[:] = positions
-        state.rover_headings[:] = headings
-        state.rover_velocities[:] = velocities
+    def step(self, state, actions: np.ndarray, teams: np.ndarray | None = None) -> None:
+        """Advance one environment step under the (E, R, 2) clipped commands; the ``teams``
+        (an (E,) bool mask) only, if given (compiled in open space only)."""
+        rows = _rows(teams, self.uses_pymunk)
+        positions, headings, velocities = self.advance(state, actions, rows)
+        state.rover_positions[rows] = positions
+        state.rover_headings[rows] = headings
+        state.rover_velocities[rows] = velocities
         heading_trig(state.rover_headings, state.cos_h, state.sin_h)
 
-    def _place(self, positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
-        """Put the rovers at rest at ``positions`` (pushed apart if they overlap and
-        collisions are on), facing ``headings``; returns the positions used."""
+    def _place(self, positions: np.ndarray, headings: np.ndarray, rows=_EVERY) -> np.ndarray:
+        """Put the rovers of the teams ``rows`` at rest at ``positions`` (pushed apart if
+        they overlap and collisions are on), facing ``headings``; returns the positions
+        used."""
         cfg = self.config
         if cfg.physics.collisions:
             # r_i + r_j: symmetric by construction (floating-point addition commutes)
             positions = separate(positions, self.contact, self.slop, symmetric=True)
-        start = np.zeros((self.n_teams, self.n_rovers, 6))
-        start[..., :2] = positions + self.offsets
+        start = np.zeros((len(positions), self.n_rovers, 6))
+        start[..., :2] = positions + self.offsets[rows]
         start[..., 2] = headings
         if not self.uses_pymunk:
-            self._free[:] = start
+            self._free[rows] = start
             return positions
         if self._static_shapes:  # drop every cached contact: park apart, let them expire
             park = np.zeros((self.n_teams, self.n_rovers, 6))
@@ -348,15 +361,20 @@ class PhysicsMotion(Dynamics):
         self._set(_ALL, start)
         return positions
 
-    def advance(self, state, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Step the bodies through one environment step from ``state``'s headings (and their
-        cosines and sines) under the clipped ``actions`` (E, R, 2); returns the new
+    def advance(self, state, actions: np.ndarray,
+                rows=_EVERY) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """Step the bodies of the teams ``rows`` (every team, or a mask where pymunk does
+        not step them) through one environment step from ``state``'s headings (and their
+        cosines and sines) under the clipped ``actions`` (E, R, 2); returns their new
         positions, headings and velocities (world units per step), new arrays."""
         cfg, dt = self.config, self.dt
-        shape = (self.n_teams, self.n_rovers)
+        every = rows is _EVERY  # else a mask: a copy of those teams' rows, written back
+        s = self._free if every else self._free[rows]
+        shape = (len(s), self.n_rovers)
         target_v, target_heading = np.empty((*shape, 2)), np.empty(shape)
-        setpoints(actions, state.rover_positions, state.rover_headings, state.cos_h, state.sin_h,
-                  self.max_speed, self.roles, target_v, target_heading)  # fmt: skip
+        setpoints(actions[rows], state.rover_positions[rows], state.rover_headings[rows],
+                  state.cos_h[rows], state.sin_h[rows], self.max_speed, self.roles,
+                  target_v, target_heading)  # fmt: skip
         if self.uses_pymunk:
             out = self._bodies()
             for k in range(cfg.physics.substeps):
@@ -367,11 +385,13 @@ class PhysicsMotion(Dynamics):
                 self.space.step(dt)
             s = self._get(_ALL, 6)
         else:
-            s = self._free  # x, y, angle, vx, vy, w
+            capsules = None if self.capsules is None else self.capsules[rows]
             advance_compiled(s, target_v, target_heading, cfg.physics.substeps, dt,
-                             self.limits, self.contact_distances, self.capsules, self.slop,
-                             self._scratch)  # fmt: skip
-        return s[..., 0:2] - self.offsets, self._wrapped(s[..., 2]), s[..., 3:5].copy()
+                             self.limits, self.contact_distances, capsules, self.slop,
+                             self._scratch if every else np.zeros_like(s))  # fmt: skip
+            if not every:
+                self._free[rows] = s
+        return s[..., 0:2] - self.offsets[rows], self._wrapped(s[..., 2]), s[..., 3:5].copy()
 
     def _wrapped(self, angles: np.ndarray) -> np.ndarray:
         out = np.empty(angles.shape)

@@ -139,3 +139,12 @@ def _separate_near(x, y, min_distance, tolerance, max_iterations, push_x, push_y
         for i in range(n):
             x[i] += push_x[i]
             y[i] += push_y[i]
+
+
+def pair_overlaps(positions: np.ndarray, radius: float) -> np.ndarray:
+    """(E, R (R - 1) / 2) overlap of every pair of rovers of each team, as a fraction of a
+    diameter: ``max(0, 2 r - distance) / (2 r)`` (0 apart or touching, 1 coincident)."""
+    d = positions[:, :, None, :] - positions[:, None, :, :]
+    dist = np.sqrt((d**2).sum(-1))
+    i, j = np.triu_indices(positions.shape[1], 1)
+    return np.maximum(0.0, 2 * radius - dist[:, i, j]) / (2 * radius)

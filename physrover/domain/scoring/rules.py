@@ -107,12 +107,14 @@ class PoiRules(NamedTuple):
                    require, agent_class, valued, np.zeros((n_teams, k)),
                    np.zeros((n_teams, config.n_rovers, k)))  # fmt: skip
 
-    def start(self) -> None:
+    def start(self, teams: np.ndarray | None = None) -> None:
         """Forget the counterfactual captures and the distance values: the start of an
-        episode."""
-        self.step_without[:] = -1
-        self.value_best[:] = 0.0
-        self.value_without[:] = 0.0
+        episode (of the ``teams``, an (E,) bool mask, only, if given)."""
+        if teams is None:
+            teams = slice(None)
+        self.step_without[teams] = -1
+        self.value_best[teams] = 0.0
+        self.value_without[teams] = 0.0
 
 
 def _capture_radii_sq(config) -> np.ndarray:
