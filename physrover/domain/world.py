@@ -137,7 +137,9 @@ class RoverWorld:
         """
         if len(rngs) != self.n_teams:
             raise ValueError(f"need one generator per team ({self.n_teams}), got {len(rngs)}")
-        teams = None if teams is None or self._mask(teams).all() else self._mask(teams)
+        if teams is not None:
+            teams = self._mask(teams)
+            teams = None if teams.all() else teams  # every team: the lock-step reset
         if teams is not None and self.config.scenario.redraw == "generation":
             raise ValueError(
                 "teams reset apart need the scenario's redraw = 'episode' or "
