@@ -80,14 +80,15 @@ def test_reset_mask_is_gymnasiums_sync_vector_env_of_single_envs(name, seed):
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
-def test_a_team_reset_apart_records_what_a_world_of_it_alone_records(name):
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_team_reset_apart_records_what_a_world_of_it_alone_records(name, seed):
     config = CONFIGS[name]
     world, alone, together = (RoverWorld(config, n) for n in (E, 1, E))
-    rngs = [np.random.default_rng(s) for s in range(E)]
-    twins = [np.random.default_rng(s) for s in range(E)]
+    rngs = [np.random.default_rng(10 * seed + s) for s in range(E)]
+    twins = [np.random.default_rng(10 * seed + s) for s in range(E)]
     world.reset(rngs)
     together.reset(twins)
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(7 + seed)
     actions = rng.uniform(-1.0, 1.0, (config.steps, E, config.n_rovers, 2))
     for t in range(4):
         world.step(actions[t])
