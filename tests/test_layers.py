@@ -200,8 +200,8 @@ DOMAIN_ROOMS = {
     "scoring": {"state", "agents"},
     "scenarios": {"obstacles"},
     "plan": {"agents", "motion", "sensing", "scoring"},
-    "step": {"state", "motion", "sensing", "scoring"},
-    "start": set(),
+    "step": {"state", "agents", "motion", "sensing", "scoring"},
+    "start": {"agents", "scenarios"},
     "world": {"state", "agents", "motion", "scoring", "scenarios", "plan", "step", "start"},
 }
 

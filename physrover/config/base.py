@@ -171,6 +171,15 @@ class ConfigBase:
         return cls.from_dict(data.get(cls.section, {}))
 
 
+def coerce_table(value: Any, cls: type):
+    """A ``[section]`` table as ``cls``: from None (its defaults), a mapping or an instance."""
+    table = cls() if value is None else value
+    if isinstance(table, Mapping):
+        table = cls.from_dict(table)
+    check(isinstance(table, cls), cls.section, f"must be a {cls.__name__}")
+    return table
+
+
 def coerce_tables(value: Any, cls: type, section: str, finish=None) -> tuple:
     """A list of ``[[section]]`` tables (mappings or ``cls`` instances) as a tuple of
     ``cls`` (each passed through ``finish`` if given); errors name ``section[i].field``."""

@@ -1,10 +1,11 @@
-"""The domain's configuration: ``[domain]``, ``[physics]``, ``[scenario]`` and ``[sensor]``.
+"""The domain's configuration: ``[domain]``, ``[physics]``, ``[failures]``, ``[scenario]`` and
+``[sensor]``.
 
 Field names are the public vocabulary of physrover: the same names are used in TOML files,
 on the command line (``--set n_req=5``, ``--set physics.substeps=2``) and as keyword
 arguments of the gymnasium environments (``RoverVectorEnv(50, n_req=5, collisions=False)``).
-A bare name is looked up in [domain], then [physics], the scenario's and the sensor's
-tables (a name in two of them must be written ``table.field``).
+A bare name is looked up in [domain], then [physics], [failures], the scenario's and the
+sensor's tables (a name in two of them must be written ``table.field``).
 
 The scenario (start states) and the sensor (observations) are components chosen by name
 (``[scenario] kind = "ring"``, :mod:`physrover.domain.scenarios`; ``[sensor] kind =
@@ -18,8 +19,6 @@ import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-import numpy as np
-
 from physrover.config.base import (
     Component,
     ConfigBase,
@@ -27,11 +26,14 @@ from physrover.config.base import (
     check,
     check_choice,
     coerce,
+    coerce_table,
     component,
     did_you_mean,
     dumps_toml,
     loads_toml,
 )
+from physrover.config.failures import FailureConfig
+from physrover.config.physics import PhysicsConfig
 from physrover.config.roles import (
     ROLE_TABLES,
     check_derived_kept,
@@ -42,101 +44,10 @@ from physrover.config.roles import (
 )
 from physrover.core.registry import DYNAMICS, SCENARIOS, SENSORS
 
-PER_ROVER = ("rover_radius", "rover_mass", "max_force", "max_torque", "max_speed")
-"""The [physics] fields that take one number for every rover or a list of one per rover."""
-
-INTEGRATORS = ("auto", "pymunk", "compiled")
-"""Values of ``[physics] integrator`` (:class:`PhysicsConfig`)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class PhysicsConfig(ConfigBase):
-    """The physical motion model (``motion = "physics"``, :mod:`physrover.domain.motion.physics`).
-
-    Time unit: one environment step; lengths in world units; masses in mass units. The
-    fields of :data:`PER_ROVER` take one number (every rover) or a list of one per rover (a
-    heterogeneous team; :meth:`per_rover`).
-    """
-
-    section: ClassVar[str] = "physics"
-
-    collisions: bool = True
-    """Rovers of a team collide with each other."""
-    rover_radius: Any = 0.2
-    """Radius of a rover's circular body, world units."""
-    rover_mass: Any = 1.0
-    """Mass of a rover, mass units; moment of inertia is that of a disc."""
-    max_force: Any = 0.5
-    """Largest drive force, mass x world units / step^2: from rest to speed 1 takes
-    rover_mass / max_force steps."""
-    max_torque: Any = 0.05
-    """Largest steering torque, mass x world units^2 / step^2."""
-    max_speed: Any = math.inf
-    """Largest commanded speed, world units per step (the command's own limit is sqrt(2));
-    the velocity setpoint is scaled down to it."""
-    substeps: int = 4
-    """Physics steps per environment step."""
-    solver_iterations: int = 10
-    """Iterations of pymunk's contact solver per physics step (contacts with walls and
-    obstacles; rovers' contacts with each other are the compiled pass's)."""
-    walls: bool = False
-    """Square walls around each team's world."""
-    wall_half_size: float = 30.0
-    """Half the side of the walled square centred on the origin, world units."""
-    integrator: str = "auto"
-    """Who integrates the bodies: ``"auto"``, the compiled step in open space (no walls or
-    obstacles: Chipmunk's semi-implicit Euler step of free bodies, the same arithmetic,
-    bit-identical to pymunk's x86-64 wheels, which use no fused multiply-adds; tested) and
-    pymunk whenever there is something static to hit; ``"pymunk"``, pymunk always (the
-    reference; about twice as slow in open space); ``"compiled"``, the compiled step
-    always, the rovers' contacts with walls and obstacles resolved by the compiled contact
-    pass alone (without Chipmunk's contacts after it: the same overlaps in
-    ``experiments/contacts.py`` at the default 4 substeps, different trajectories, a
-    walled world ~2.8x faster)."""
-
-    def __post_init__(self) -> None:
-        self._coerce_fields()
-        for name in PER_ROVER:
-            value = getattr(self, name)
-            if isinstance(value, np.ndarray):  # a per-rover array given in code
-                value = value.tolist()
-            if isinstance(value, (list, tuple)):
-                value = tuple(coerce(name, float, v) for v in value)
-                check(len(value) >= 1, name, "a list needs one value per rover")
-            else:
-                value = coerce(name, float, value)
-            object.__setattr__(self, name, value)
-            for v in value if isinstance(value, tuple) else (value,):
-                ok = v > 0 and (math.isfinite(v) or name == "max_speed")
-                check(ok, name, f"must be > 0, got {v}")
-        self.check_positive("wall_half_size")
-        self.check_at_least(1, "substeps", "solver_iterations")
-        check_choice(self.integrator, INTEGRATORS, "integrator")
-
-    def per_rover(self, name: str, n_rovers: int) -> np.ndarray:
-        """(R,) float64: field ``name`` of :data:`PER_ROVER` for each rover."""
-        value = getattr(self, name)
-        return np.array(value if isinstance(value, tuple) else (value,) * n_rovers, dtype=float)
-
-    def check_rovers(self, n_rovers: int) -> None:
-        """ConfigError unless every per-rover list has ``n_rovers`` values."""
-        for name in PER_ROVER:
-            value = getattr(self, name)
-            n = len(value) if isinstance(value, tuple) else n_rovers
-            check(n == n_rovers, name, f"a list needs one value per rover ({n_rovers}), got {n}")
-
-
-def _physics(value: Any) -> PhysicsConfig:
-    """A PhysicsConfig from None (the defaults), a table or an instance."""
-    physics = PhysicsConfig() if value is None else value
-    if isinstance(physics, Mapping):
-        physics = PhysicsConfig.from_dict(physics)
-    check(isinstance(physics, PhysicsConfig), "physics", "must be a PhysicsConfig")
-    return physics
-
-
-COMPONENTS = ("physics", "scenario", "sensor")
+COMPONENTS = ("physics", "failures", "scenario", "sensor")
 """The fields of :class:`DomainConfig` that hold a table of their own."""
+TABLES = {"physics": PhysicsConfig, "failures": FailureConfig}
+"""The components that are one fixed table (the others are registered kinds), by field."""
 REGISTRIES = {"scenario": SCENARIOS, "sensor": SENSORS}
 DEFAULT_KINDS = {"scenario": "ring", "sensor": "density"}
 """The kinds a scenario and a sensor have when a config names none (the paper's)."""
@@ -159,8 +70,9 @@ class DomainConfig(ConfigBase):
 
     Distances are in world units (the paper's: capture radius 4, POI ring radius 15); one
     environment step is one time step ``t`` of Eqs. 11-16. Defaults are the paper's values.
-    ``physics``, ``scenario`` and ``sensor`` hold their own tables; each accepts an
-    instance, a table (mapping), or for the scenario and sensor a registered kind's name.
+    ``physics``, ``failures``, ``scenario`` and ``sensor`` hold their own tables; each
+    accepts an instance, a table (mapping), or for the scenario and sensor a registered
+    kind's name.
     """
 
     section: ClassVar[str] = "domain"
@@ -189,6 +101,9 @@ class DomainConfig(ConfigBase):
     :data:`physrover.core.registry.DYNAMICS`."""
     physics: Any = None
     """[physics]: a :class:`PhysicsConfig` (used when motion = "physics")."""
+    failures: Any = None
+    """[failures]: a :class:`~physrover.config.failures.FailureConfig`, agents that fail
+    mid-episode (default: none)."""
     scenario: Any = None
     """[scenario]: start states (default ``"ring"``, the paper's)."""
     sensor: Any = None
@@ -202,8 +117,9 @@ class DomainConfig(ConfigBase):
 
     def __post_init__(self) -> None:
         self._coerce_fields()
-        physics = _physics(self.physics)
-        object.__setattr__(self, "physics", physics)
+        for name, table in TABLES.items():
+            object.__setattr__(self, name, coerce_table(getattr(self, name), table))
+        physics = self.physics
         for section in ("scenario", "sensor"):
             value = component(getattr(self, section), REGISTRIES[section], section,
                               DEFAULT_KINDS[section])  # fmt: skip
@@ -248,6 +164,7 @@ class DomainConfig(ConfigBase):
             'kinematics has none); use motion = "physics" or a scenario without obstacles',
         )
         physics.check_rovers(self.n_rovers)
+        self.failures.check_domain(self.n_rovers, self.steps)
         if physics.walls:
             radius = float(physics.per_rover("rover_radius", self.n_rovers).max())
             inner = extent_of(self.scenario, self.n_rovers, spawn=True) + 2 * radius
@@ -284,13 +201,15 @@ class DomainConfig(ConfigBase):
     # -- flat names ------------------------------------------------------------------------
 
     def tables(self) -> dict[str, dict[str, Any]]:
-        """{section: table} of [domain], [physics], [scenario], [sensor] (and ``pois`` and
-        ``agents``, lists of tables, if any), as in TOML."""
+        """{section: table} of [domain], [physics], [failures] (if any agent can fail: a
+        config without it reads as it did before the table existed), [scenario], [sensor]
+        (and ``pois`` and ``agents``, lists of tables, if any), as in TOML."""
         dropped, lists = role_tables(self)
         own = {k: v for k, v in self.to_dict().items() if k not in (*COMPONENTS, *dropped)}
         return {
             "domain": own,
             "physics": self.physics.to_dict(),
+            **({"failures": self.failures.to_dict()} if self.failures.on else {}),
             "scenario": self.scenario.table(),
             "sensor": self.sensor.table(),
             **lists,
@@ -300,7 +219,7 @@ class DomainConfig(ConfigBase):
         """Every field by its bare name (the scenario's and sensor's kinds as ``scenario``
         and ``sensor``): what ``--set`` and the envs' keyword arguments address."""
         t = self.tables()
-        flat = {**t["domain"], **t["physics"]}
+        flat = {**t["domain"], **t["physics"], **self.failures.to_dict()}
         for section in ("scenario", "sensor"):
             table = dict(t[section])
             flat[section] = table.pop("kind")
@@ -317,15 +236,16 @@ class DomainConfig(ConfigBase):
         says which to write.
         """
         changes = dict(changes)
-        for section in ("scenario", "sensor"):  # the TOML spelling of a kind change
-            if f"{section}.kind" in changes:
+        for section in COMPONENTS:
+            if f"{section}.kind" in changes:  # the TOML spelling of a kind change
                 changes[section] = changes.pop(f"{section}.kind")
             if f"domain.{section}" in changes:
                 changes[section] = changes.pop(f"domain.{section}")
-        if "domain.physics" in changes:
-            changes["physics"] = changes.pop("domain.physics")
         parts = {
-            "physics": _physics(changes.pop("physics", self.physics)),
+            **{
+                name: coerce_table(changes.pop(name, getattr(self, name)), table)
+                for name, table in TABLES.items()
+            },
             "scenario": self._component("scenario", changes.pop("scenario", self.scenario)),
             "sensor": self._component("sensor", changes.pop("sensor", self.sensor)),
         }
@@ -376,13 +296,14 @@ class DomainConfig(ConfigBase):
         unknown = sorted(set(data) - {"domain", *COMPONENTS, *ROLE_TABLES})
         if unknown:
             raise ConfigError(unknown[0], "unknown TOML table (expected [domain], [physics], "
-                              "[scenario], [sensor], [[pois]] or [[agents]])")  # fmt: skip
+                              "[failures], [scenario], [sensor], [[pois]] or "
+                              "[[agents]])")  # fmt: skip
         return cls.from_tables(data)
 
     @classmethod
     def from_tables(cls, data: Mapping[str, Any]) -> DomainConfig:
-        """From the [domain], [physics], [scenario], [sensor], [[pois]] and [[agents]] tables
-        of a TOML file."""
+        """From the [domain], [physics], [failures], [scenario], [sensor], [[pois]] and
+        [[agents]] tables of a TOML file."""
         domain = dict(data.get("domain", {}))
         check_derived_not_given(domain, data)
         for section in (*COMPONENTS, *ROLE_TABLES):
@@ -393,4 +314,4 @@ class DomainConfig(ConfigBase):
         return cls.from_dict(domain)
 
 
-__all__ = ["COMPONENTS", "Component", "DomainConfig", "PhysicsConfig"]
+__all__ = ["COMPONENTS", "Component", "DomainConfig", "FailureConfig", "PhysicsConfig"]

@@ -21,6 +21,8 @@ Parts and their kernels:
 - ``rules``: the POIs' rules (:class:`~physrover.domain.scoring.rules.PoiRules`), None
   where every POI scores as the paper's; then ``counted`` (R,) bool marks the agents that
   count toward couplings where a class does not capture (None: every agent counts);
+- ``failures``: when each agent fails (:class:`~physrover.domain.agents.failures.Failures`,
+  drawn at every reset), None where no agent can fail;
 - the coupling ``n_req`` (K,), ``d_cap^2`` and the last scored step ``t_final``.
 
 What has no kernel (a user's sensor, a subclass of a built-in part that may override its
@@ -36,6 +38,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from physrover.domain.agents.classes import class_rows, class_sensor, counted_agents
+from physrover.domain.agents.failures import Failures, alive_at
 from physrover.domain.agents.roles import Roles
 from physrover.domain.motion.dynamics import compiled_motion
 from physrover.domain.scoring.captures import last_scored_step
@@ -71,6 +74,8 @@ class StepPlan(NamedTuple):
     """The capture radius squared (Eq. 13), world units^2."""
     t_final: int
     """The last scored step."""
+    failures: Any = None
+    """:class:`~physrover.domain.agents.failures.Failures`, or None (no agent fails)."""
 
 
 @dataclass(frozen=True)
@@ -82,6 +87,22 @@ class Plan:
     """Observations per agent: the widest class's."""
     python_sensors: tuple
     """(rows, sensor, view or None, size) of each class observed from Python."""
+
+    def observe_in_python(self, state, d_min: float, obs: np.ndarray, t) -> None:
+        """The classes whose sensor brings no kernel, observed from Python into their rows
+        of ``obs`` (E, R, n_obs) (the columns past a class's size 0), from ``state`` at
+        step ``t`` (an int, or each team's (E,)); a failed agent's stay 0."""
+        for rows, sensor, view, size in self.python_sensors:
+            if view is not None:  # a class-aware sensor (a lidar's subclass)
+                obs[:, rows] = 0.0
+                sensor.observe_class(state, d_min, obs, view, rows)
+                continue
+            scratch = np.zeros((*obs.shape[:2], size), dtype=np.float32)
+            sensor.observe(state, d_min, scratch)
+            obs[:, rows] = 0.0
+            obs[:, rows, :size] = scratch[:, rows]
+        if self.python_sensors and self.step.failures is not None:
+            obs[~alive_at(self.step.failures.at, t)] = 0.0
 
     @property
     def python_parts(self) -> list[str]:
@@ -124,7 +145,7 @@ def build_plan(config, dynamics, n_teams: int) -> Plan:
     counted = None if rules is not None or counted.all() else counted
     step = StepPlan(motion, density, classes, rules, counted,
                     np.array(config.n_req_per_poi, dtype=np.int64), float(config.d_cap) ** 2,
-                    int(last_scored_step(config)))  # fmt: skip
+                    int(last_scored_step(config)), Failures.build(config, n_teams))  # fmt: skip
     return Plan(step, max(agent_obs_sizes(config)), tuple(python_sensors))
 
 

@@ -1,5 +1,7 @@
-"""A start state given in part: ``reset(options=...)`` of the envs (:class:`StartOverrides`),
-and the checks that turn a given array into the world's (E, ...) rows."""
+"""The start of a reset: the scenario's draws under its redraw mode (:class:`StartDraws`),
+with the classes' spawns and the failing agents drawn after them; a start state given in
+part, ``reset(options=...)`` of the envs (:class:`StartOverrides`); and the checks that
+turn a given array into the world's (E, ...) rows."""
 
 from __future__ import annotations
 
@@ -8,6 +10,64 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
+
+from physrover.domain.agents.classes import spawn
+from physrover.domain.agents.failures import draw_failures
+from physrover.domain.scenarios import StartState
+
+
+class StartDraws:
+    """A world's start states: the scenario's draw (team e's from ``rngs[e]`` alone) and
+    the classes' spawn rules, then shared as the scenario's ``redraw`` mode says
+    (:mod:`physrover.domain.scenarios`); and the failing agents' steps, shared the same way.
+    ``fresh_teams``: under ``redraw = "generation"``, the last this many teams draw their
+    own (the CCEA's evaluation episodes), the others share team 0's."""
+
+    def __init__(self, config, n_teams: int):
+        self.config, self.n_teams = config, int(n_teams)
+        self._fixed: StartState | None = None  # redraw = "never"
+
+    def shared(self, fresh_teams: int) -> int:
+        """Under redraw = "generation": how many teams share team 0's start."""
+        return self.n_teams - min(fresh_teams, self.n_teams - 1)
+
+    def draw(self, rngs, fresh_teams: int) -> StartState:
+        """The start states of this reset of the teams whose generators ``rngs`` are."""
+        config, n_rovers = self.config, self.config.n_rovers
+        scenario, values = config.scenario, np.asarray(config.poi_values, dtype=float)
+        start = scenario.draw(rngs, n_rovers, values)
+        if not isinstance(start, StartState):
+            raise TypeError(f"{type(scenario).__name__}.draw must return a StartState")
+        if config.agents:  # the classes' spawn rules, drawn after the scenario
+            start = start._replace(rover_positions=np.array(start.rover_positions, float))
+            spawn(start.rover_positions, config, rngs)
+        if scenario.redraw == "episode":
+            return start
+        if scenario.redraw == "never":
+            if self._fixed is None:
+                rng = np.random.default_rng(scenario.layout_seed)
+                fixed = scenario.draw([rng], n_rovers, values)
+                if config.agents:
+                    fixed = fixed._replace(rover_positions=np.array(fixed.rover_positions, float))
+                    spawn(fixed.rover_positions, config, [rng])
+                self._fixed = StartState(*(a[0] for a in fixed))
+            shared, first = self.n_teams, self._fixed
+        else:  # "generation": team 0's draw for every team but the fresh ones
+            shared = self.shared(fresh_teams)
+            first = StartState(*(np.asarray(a)[0] for a in start))
+        out = [np.array(a, dtype=np.float64) for a in start]
+        for arr, row in zip(out, first, strict=True):
+            arr[:shared] = row
+        return StartState(*out)
+
+    def failures(self, rngs, fresh_teams: int) -> np.ndarray:
+        """(len(rngs), R) int64: the failure steps of this reset
+        (:func:`~physrover.domain.agents.failures.draw_failures`), drawn after the start;
+        under redraw = "generation" the teams that share a start share them too."""
+        at = draw_failures(self.config, rngs)
+        if self.config.scenario.redraw == "generation" and len(rngs) == self.n_teams:
+            at[: self.shared(fresh_teams)] = at[0]
+        return at
 
 
 @dataclass(frozen=True)
@@ -73,4 +133,4 @@ def write_start(state, rows, start, overrides: StartOverrides | None, n_teams: i
         raise ValueError("poi_values must be positive")
 
 
-__all__ = ["StartOverrides", "team_array", "write_start"]
+__all__ = ["StartDraws", "StartOverrides", "team_array", "write_start"]

@@ -18,6 +18,7 @@ A team's step t (from state t - 1 to state t), in this order:
    (:func:`~physrover.domain.motion.ideal.move_team`; the classes' gates are judged from
    the positions before anyone moves);
 2. every agent senses the new state (the paper's density sensor, or each class's lidar);
+   a failed agent's observation is 0 (:mod:`physrover.domain.agents.failures`);
 3. if state t is scored (t <= ``t_final``), captures, G and D's counterfactuals
    (:func:`~physrover.domain.scoring.captures.score_team`, under the POIs' rules);
 4. the new positions and headings are recorded.
@@ -35,6 +36,7 @@ from numba import types
 from numba.extending import overload
 
 from physrover.core.compiled import jit, jit_inline
+from physrover.domain.agents.failures import silence
 from physrover.domain.motion.ideal import all_commands_ok, commands_ok, move_team
 from physrover.domain.scoring.captures import score_team
 from physrover.domain.sensing.classes import sense_classes, sensing_scratch
@@ -74,13 +76,13 @@ def step_scratch(plan, n_agents):
                        _classes_scratch(plan.classes, n_agents))  # fmt: skip
 
 
-def _move(e, commands, state, actions, headings, motion, free):
-    """Move team e with the plan's ``motion`` (None: moved before the kernel). The
+def _move(e, t, commands, state, actions, headings, motion, free, failures):
+    """Move team e into state t with the plan's ``motion`` (None: moved before the kernel). The
     compiled versions below choose by ``motion``'s type, inlined: numba prunes a branch on
     None only in a function's own arguments, and a call per part cost the paper's episode a
     fifth of its time (the arrays' reference counts change at every call)."""
     if motion is not None:
-        move_team(e, commands, state, actions, headings, motion.roles, free)
+        move_team(e, commands, state, actions, headings, motion.roles, free, failures, t)
 
 
 def _sense(e, state, obs, density, classes, scratch):
@@ -92,12 +94,12 @@ def _sense(e, state, obs, density, classes, scratch):
 
 
 @overload(_move, inline="always")
-def _move_compiled(e, commands, state, actions, headings, motion, free):
+def _move_compiled(e, t, commands, state, actions, headings, motion, free, failures):
     if isinstance(motion, types.NoneType):
-        return lambda e, commands, state, actions, headings, motion, free: None
+        return lambda e, t, commands, state, actions, headings, motion, free, failures: None
 
-    def move(e, commands, state, actions, headings, motion, free):
-        move_team(e, commands, state, actions, headings, motion.roles, free)
+    def move(e, t, commands, state, actions, headings, motion, free, failures):
+        move_team(e, commands, state, actions, headings, motion.roles, free, failures, t)
 
     return move
 
@@ -131,10 +133,13 @@ def step_team(e, t, commands, plan, state, actions, obs, positions, headings, wi
     :func:`~physrover.domain.motion.ideal.ideal_move`); ``scratch`` a
     :class:`StepScratch`; ``move`` False at reset (state 0: sensed, scored, recorded)."""
     if move:  # False at reset: state 0 is sensed, scored and recorded, not moved into
-        _move(e, commands, state, actions, with_headings, plan.motion, scratch.free)
+        _move(e, t, commands, state, actions, with_headings, plan.motion, scratch.free,
+              plan.failures)  # fmt: skip
     _sense(e, state, obs, plan.density, plan.classes, scratch)
+    silence(plan.failures, e, t, obs)
     if t <= plan.t_final:
-        score_team(e, state, plan.d_cap_sq, plan.n_req, t, plan.rules, plan.counted)
+        score_team(e, state, plan.d_cap_sq, plan.n_req, t, plan.rules, plan.counted,
+                   plan.failures)  # fmt: skip
     for i in range(state.rover_positions.shape[1]):
         positions[e, i, 0] = state.rover_positions[e, i, 0]
         positions[e, i, 1] = state.rover_positions[e, i, 1]

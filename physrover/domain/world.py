@@ -28,12 +28,11 @@ import numpy as np
 from physrover.config import DomainConfig
 from physrover.core.compiled import bind
 from physrover.core.registry import DYNAMICS
-from physrover.domain.agents.classes import spawn
+from physrover.domain.agents.failures import alive_at, halt_commands
 from physrover.domain.motion.ideal import clip_teams
 from physrover.domain.plan import build_plan
-from physrover.domain.scenarios import StartState
 from physrover.domain.scoring.difference import difference
-from physrover.domain.start import StartOverrides, write_start
+from physrover.domain.start import StartDraws, StartOverrides, write_start
 from physrover.domain.state import WorldState, start_episode
 from physrover.domain.step import step_teams, step_teams_at
 
@@ -97,7 +96,7 @@ class RoverWorld:
         self.fresh_teams = 0
         """Under the scenario's redraw = "generation", the last this many teams draw their own
         start states (the CCEA's evaluation episodes); the others share one."""
-        self._fixed_start: StartState | None = None  # redraw = "never"
+        self.starts = StartDraws(config, self.n_teams)
         self.team_t = np.full(self.n_teams, -1, dtype=np.int64)
         """(E,) the steps each team has taken in its episode (-1 before its first reset),
         all equal to :attr:`t` unless some teams were reset apart (``reset(..., teams=)``)."""
@@ -146,7 +145,8 @@ class RoverWorld:
                 "'never' (under 'generation' a reset's teams share a draw)"
             )
         rows = slice(None) if teams is None else np.flatnonzero(teams)
-        start = self._draw(rngs if teams is None else [rngs[e] for e in rows])
+        drawing = rngs if teams is None else [rngs[e] for e in rows]
+        start = self.starts.draw(drawing, self.fresh_teams)
         write_start(self.state, rows, start, overrides, self.n_teams)
         if teams is None:
             self.dynamics.reset(self.state)  # may push overlapping spawns apart
@@ -155,37 +155,11 @@ class RoverWorld:
         start_episode(self.state, teams)
         if self.plan.step.rules is not None:
             self.plan.step.rules.start(teams)
+        if self.plan.step.failures is not None:  # drawn after the start, shared as it is
+            self.plan.step.failures.at[rows] = self.starts.failures(drawing, self.fresh_teams)
         if teams is None:
             return self._step(self._clipped, 0)  # state 0: sensed, scored and recorded
         return self._step_at(self._clipped, np.where(teams, 0, -1))
-
-    def _draw(self, rngs: Sequence[np.random.Generator]) -> StartState:
-        """The scenario's start states for this reset, under its redraw mode."""
-        scenario, values = self.config.scenario, np.asarray(self.config.poi_values, dtype=float)
-        start = scenario.draw(rngs, self.n_rovers, values)
-        if not isinstance(start, StartState):
-            raise TypeError(f"{type(scenario).__name__}.draw must return a StartState")
-        if self.config.agents:  # the classes' spawn rules, drawn after the scenario
-            start = start._replace(rover_positions=np.array(start.rover_positions, float))
-            spawn(start.rover_positions, self.config, rngs)
-        if scenario.redraw == "episode":
-            return start
-        if scenario.redraw == "never":
-            if self._fixed_start is None:
-                rng = np.random.default_rng(scenario.layout_seed)
-                fixed = scenario.draw([rng], self.n_rovers, values)
-                if self.config.agents:
-                    fixed = fixed._replace(rover_positions=np.array(fixed.rover_positions, float))
-                    spawn(fixed.rover_positions, self.config, [rng])
-                self._fixed_start = StartState(*(a[0] for a in fixed))
-            shared, first = self.n_teams, self._fixed_start
-        else:  # "generation": team 0's draw for every team but the fresh ones
-            shared = self.n_teams - min(self.fresh_teams, self.n_teams - 1)
-            first = StartState(*(np.asarray(a)[0] for a in start))
-        out = [np.array(a, dtype=np.float64) for a in start]
-        for arr, row in zip(out, first, strict=True):
-            arr[:shared] = row
-        return StartState(*out)
 
     def step(self, actions: np.ndarray) -> np.ndarray:
         """Apply (E, R, 2) actions (clipped to [-1, 1]); returns (E, R, n_obs) float32
@@ -204,6 +178,8 @@ class RoverWorld:
         if self.plan.step.motion is None:  # a motion model stepped from Python moves first
             if not clip_teams(actions, self._clipped, self.actions[t]):
                 raise ValueError("actions contain NaN")
+            if self.plan.step.failures is not None:
+                halt_commands(self._clipped, self.actions[t], self.plan.step.failures.at, t + 1)
             self.dynamics.step(self.state, self._clipped)
             return self._step(self._clipped, t + 1)
         # float64 (the clip is in float64 either way, so float32 commands give the same
@@ -228,6 +204,9 @@ class RoverWorld:
             record = np.empty(commands.shape, dtype=np.float32)
             if not clip_teams(commands, self._clipped, record):
                 raise ValueError("actions contain NaN")
+            if self.plan.step.failures is not None:
+                halt_commands(self._clipped, record, self.plan.step.failures.at,
+                              self.team_t + 1, teams)  # fmt: skip
             self._apart(self.dynamics.step)(self.state, self._clipped, teams=teams)
             for e in np.flatnonzero(teams):
                 self.actions[self.team_t[e], e] = record[e]
@@ -259,8 +238,9 @@ class RoverWorld:
             self._bound_at_plan = self.plan
         if not self._bound_at(*args):
             raise ValueError("actions contain NaN")
-        self._observe_in_python(obs)
         moved = at >= 0
+        self.plan.observe_in_python(self.state, self.config.d_min, obs,
+                                    np.where(moved, at, self.team_t))  # fmt: skip
         self.team_t[moved] = at[moved]
         rows = np.flatnonzero(moved & (at < self.config.steps))
         self.observations[at[rows], rows] = obs[rows]
@@ -283,25 +263,12 @@ class RoverWorld:
         ok = self._bound(*args)
         if not ok:
             raise ValueError("actions contain NaN")
-        self._observe_in_python(obs)
+        self.plan.observe_in_python(self.state, self.config.d_min, obs, t)
         self._t, self._last_obs = t, obs
         self.team_t[:] = t
         if t < self.config.steps:
             self.observations[t] = obs
         return obs
-
-    def _observe_in_python(self, obs: np.ndarray) -> None:
-        """The classes whose sensor brings no kernel, observed from Python into their rows
-        (the columns past a class's size 0)."""
-        for rows, sensor, view, size in self.plan.python_sensors:
-            if view is not None:  # a class-aware sensor (a lidar's subclass)
-                obs[:, rows] = 0.0
-                sensor.observe_class(self.state, self.config.d_min, obs, view, rows)
-                continue
-            scratch = np.zeros((self.n_teams, self.n_rovers, size), dtype=np.float32)
-            sensor.observe(self.state, self.config.d_min, scratch)
-            obs[:, rows] = 0.0
-            obs[:, rows, :size] = scratch[:, rows]
 
     def play(self, episode) -> None:
         """Play the rest of the episode of a just reset world with a compiled ``episode``
@@ -376,6 +343,14 @@ class RoverWorld:
         if self._t is not None:
             return self._t >= self.config.steps
         return bool((self.team_t >= self.config.steps).all())
+
+    @property
+    def alive(self) -> np.ndarray:
+        """(E, R) bool: which agents are alive at each team's current step (every agent
+        unless ``[failures]``; :mod:`physrover.domain.agents.failures`)."""
+        if self.plan.step.failures is None:
+            return np.ones((self.n_teams, self.n_rovers), dtype=bool)
+        return alive_at(self.plan.step.failures.at, self.team_t)
 
     @property
     def team_done(self) -> np.ndarray:

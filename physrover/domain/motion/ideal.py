@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from physrover.core.compiled import jit
+from physrover.domain.agents.failures import alive
 from physrover.domain.agents.roles import class_command, gate_free, pick_moves
 
 
@@ -77,12 +78,14 @@ def all_commands_ok(commands):
 
 
 @jit
-def move_team(e, commands, state, actions, headings, roles, free):
+def move_team(e, commands, state, actions, headings, roles, free, failures=None, t=0):
     """Move the rovers of team ``e`` by their clipped ``commands`` (E, R, 2) (recorded in
     ``actions`` (E, R, 2)): positions, headings (NaN unless ``headings``, see
     :func:`ideal_move`) and their cosines and sines in ``state``. ``roles``: the agent
     classes' rule (:class:`~physrover.domain.agents.roles.Roles`; None, the paper's
-    rovers, compiles it away), ``free`` its (R,) bool scratch."""
+    rovers, compiles it away), ``free`` its (R,) bool scratch. ``failures``
+    (:class:`~physrover.domain.agents.failures.Failures`; None compiles it away): an agent
+    not alive at state ``t``, the state this move leads to, stays put, its command 0."""
     positions, angles = state.rover_positions, state.rover_headings
     cos_h, sin_h = state.cos_h, state.sin_h
     if roles is not None:
@@ -91,6 +94,10 @@ def move_team(e, commands, state, actions, headings, roles, free):
     for i in range(angles.shape[1]):
         fwd = clip(commands[e, i, 0])
         left = clip(commands[e, i, 1])
+        if not alive(failures, e, t, i):
+            fwd = left = 0.0
+            if roles is not None:
+                free[i] = False
         actions[e, i, 0] = fwd
         actions[e, i, 1] = left
         if roles is not None:

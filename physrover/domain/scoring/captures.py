@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from physrover.core.compiled import jit, jit_inline
+from physrover.domain.agents.failures import alive
 
 
 def last_scored_step(config) -> int:
@@ -31,13 +32,15 @@ def last_scored_step(config) -> int:
 
 
 @jit
-def score_team(e, state, d_cap_sq, n_req, t, rules=None, counted=None):
+def score_team(e, state, d_cap_sq, n_req, t, rules=None, counted=None, failures=None):
     """Score step ``t`` of team ``e`` (Eqs. 11-13 and D's counterfactual captures) in
     ``state``'s scoring arrays; ``n_req`` (K,) int64 is each POI's coupling; ``rules`` a
     :class:`~physrover.domain.scoring.rules.PoiRules` or None (the paper's POIs: the rules'
     branches are compiled away). Without rules, ``counted`` (R,) bool, if given, are the
     agents that count toward couplings (the others are never in range: a class that does
-    not capture); with rules, their ``counts_for`` says it."""
+    not capture); with rules, their ``counts_for`` says it. ``failures``
+    (:class:`~physrover.domain.agents.failures.Failures`, None compiles it away): an agent
+    not alive at t is in range of nothing (and out of a distance value's nearest)."""
     positions, poi_positions = state.rover_positions, state.poi_positions
     n_rovers = positions.shape[1]
     n_pois = poi_positions.shape[1]
@@ -57,13 +60,14 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None, counted=None):
                 inside = inside and rules.counts_for[k, i]
             elif counted is not None:
                 inside = inside and counted[i]
+            inside = inside and alive(failures, e, t, i)
             near[i, k] = inside
             n += np.int64(inside)
         count[k] = n
     total = 0.0
     for k in range(n_pois):
         if rules is not None:
-            score_rules(e, k, near, state, rules, n_req, t)
+            score_rules(e, k, near, state, rules, n_req, t, failures)
         else:
             if count[k] >= n_req[k]:  # Eq. 12
                 if not captured[e, k]:
@@ -90,7 +94,7 @@ def predecessors_before(after, k, first_steps, t):
 
 
 @jit_inline
-def score_rules(e, k, near, state, rules, n_req, t):
+def score_rules(e, k, near, state, rules, n_req, t, failures=None):
     """Eq. 12 for POI k of team e at step t under ``rules`` (:mod:`physrover.domain.scoring.rules`),
     for the team and for each counterfactual without rover i; the counts are this step's.
 
@@ -101,7 +105,7 @@ def score_rules(e, k, near, state, rules, n_req, t):
     if rules.final_only[k] and t != rules.t_final:
         return
     if rules.valued[k]:
-        score_by_distance(e, k, near, state, rules, n_req, t)
+        score_by_distance(e, k, near, state, rules, n_req, t, failures)
         return
     if not coupling_met(k, near, rules, n_req, -1):
         return
@@ -119,20 +123,21 @@ def score_rules(e, k, near, state, rules, n_req, t):
 
 
 @jit_inline
-def nearest_value(positions, px, py, counts, n, without):
+def nearest_value(positions, px, py, counts, n, without, failures=None, e=0, t=0):
     """The lab's distance value of a POI at (``px``, ``py``) whose coupling is met:
     ``n x prod_j 1 / max(1, d_j)`` over the ``n`` smallest distances d_j, world units, from
     ``positions`` (R, 2) of the agents i with ``counts[i]`` (in range or not), agent
     ``without`` left out (-1: none), multiplied nearest first (AADILab/influence-shaping
     ``custom_env.py``, ``AbstractRoverConstraint._step_is_satisfied``: a stable sort, so ties
-    go by agent index); 0 if fewer than ``n`` agents count. Selection without a buffer, ``n``
+    go by agent index); 0 if fewer than ``n`` agents count. With ``failures``, the agents of
+    team ``e`` not alive at state ``t`` do not count. Selection without a buffer, ``n``
     passes over the agents: O(n R)."""
     value = float(n)
     last_d, last_i = -1.0, -1
     for _ in range(n):
         best_d, best_i = np.inf, -1
         for i in range(positions.shape[0]):
-            if i == without or not counts[i]:
+            if i == without or not counts[i] or not alive(failures, e, t, i):
                 continue
             dx = positions[i, 0] - px
             dy = positions[i, 1] - py
@@ -148,15 +153,16 @@ def nearest_value(positions, px, py, counts, n, without):
 
 
 @jit_inline
-def distance_value(e, k, state, rules, n, without):
-    """:func:`nearest_value` of POI k of team e at this step, over the agents that count
-    for it (``rules.counts_for[k]``), agent ``without`` left out (-1: none)."""
+def distance_value(e, k, state, rules, n, without, failures, t):
+    """:func:`nearest_value` of POI k of team e at step t, over the agents that count for
+    it (``rules.counts_for[k]``) and are alive, agent ``without`` left out (-1: none)."""
     return nearest_value(state.rover_positions[e], state.poi_positions[e, k, 0],
-                         state.poi_positions[e, k, 1], rules.counts_for[k], n, without)  # fmt: skip
+                         state.poi_positions[e, k, 1], rules.counts_for[k], n, without,
+                         failures, e, t)  # fmt: skip
 
 
 @jit_inline
-def score_by_distance(e, k, near, state, rules, n_req, t):
+def score_by_distance(e, k, near, state, rules, n_req, t, failures=None):
     """A distance-valued POI k of team e at scored step t (its ``final_only`` already
     checked): its value, and without each agent, where the coupling is met (a count under
     ``n_req``, or a typed one), kept at their best over the steps; the POI counts as
@@ -166,7 +172,7 @@ def score_by_distance(e, k, near, state, rules, n_req, t):
     if not coupling_met(k, near, rules, n_req, -1):
         return
     n = n_req[k]
-    value = distance_value(e, k, state, rules, n, -1)
+    value = distance_value(e, k, state, rules, n, -1, failures, t)
     if value > rules.value_best[e, k]:
         rules.value_best[e, k] = value
     if value > 0.0 and not state.captured[e, k]:
@@ -178,7 +184,7 @@ def score_by_distance(e, k, near, state, rules, n_req, t):
         elif near[i, k] and not coupling_met(k, near, rules, n_req, i):
             without = 0.0
         else:
-            without = distance_value(e, k, state, rules, n, i)
+            without = distance_value(e, k, state, rules, n, i, failures, t)
         if without > rules.value_without[e, i, k]:
             rules.value_without[e, i, k] = without
         if without > 0.0:

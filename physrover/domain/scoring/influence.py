@@ -80,7 +80,19 @@ def influence(world) -> np.ndarray:
     dist_sq = (offset * offset).sum(-1)  # (T_s, E, u, k)
     phi = dist_sq <= (radius * radius)[:, None]
     phi &= (radius > 0)[:, None] & counted[None, :] & ~np.eye(n, dtype=bool)
+    live = alive_history(world, len(positions))
+    if live is not None:  # a failed agent influences nobody and is influenced by nobody
+        phi &= live[:, :, :, None] & live[:, :, None, :]
     return phi
+
+
+def alive_history(world, n_steps: int) -> np.ndarray | None:
+    """(n_steps, E, R) bool: which agents were alive at each of the episode's first
+    ``n_steps`` states (:mod:`physrover.domain.agents.failures`); None if none can fail."""
+    failures = world.plan.step.failures
+    if failures is None:
+        return None
+    return np.arange(n_steps)[:, None, None] < failures.at[None]
 
 
 def removal_sets(phi: np.ndarray, timescale: str, rule: str = "all-or-nothing") -> np.ndarray:
@@ -193,6 +205,9 @@ def rescore(world, removed: np.ndarray) -> np.ndarray:
     """(E, A) ``G(z \\ M)`` of the episode ``world`` just played for each removal set
     ``removed`` (E, A, T_s, R) bool (:func:`replay_captures`, then Eq. 11)."""
     rules = world.plan.step.rules or PoiRules.build(world.config, world.n_teams, always=True)
+    live = alive_history(world, removed.shape[2])
+    if live is not None:  # a failed agent is out of every replay, as of the episode
+        removed = np.ascontiguousarray(removed | ~live.transpose(1, 0, 2)[:, None])
     worth = np.empty((world.n_teams, removed.shape[1], world.n_pois))
     replay_captures(world.state.in_range, removed, world.n_req, rules, worth,
                     world.position_history, world.poi_positions)  # fmt: skip
