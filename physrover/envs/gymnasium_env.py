@@ -95,8 +95,10 @@ class RoverEnv(gymnasium.Env):
     ## Info
     ``"G"`` (score so far), ``"rover_positions"`` (R, 2), ``"rover_headings"`` (R,) and
     ``"D"`` (R,): each rover's difference evaluation (Eq. 1) on the episode's last step
-    (``truncated`` True), zeros before. The keys and shapes are the same at every step
-    (what TorchRL's wrappers need).
+    (``truncated`` True), zeros before; with ``[failures]`` (agents that fail mid-episode,
+    :mod:`physrover.config.failures`) also ``"alive"`` (R,) bool, which agents have not
+    failed (a failed agent's observation is 0 and its action is ignored). The keys and
+    shapes are the same at every step (what TorchRL's wrappers need).
 
     ## Rendering
     ``render_mode="rgb_array"``: ``render()`` returns an OpenCV-drawn (H, W, 3) uint8 RGB
@@ -152,6 +154,8 @@ class RoverEnv(gymnasium.Env):
             # gymnasium's and PettingZoo's determinism checks compare infos with ==.)
             "D": w.D[0].copy() if w.done else np.zeros(w.config.n_rovers),
         }
+        if w.plan.step.failures is not None:
+            info["alive"] = w.alive[0]
         return info
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -221,7 +225,8 @@ class RoverVectorEnv(VectorEnv):
 
     Infos hold ``"G"`` (E,), ``"rover_positions"`` (E, R, 2), ``"rover_headings"`` (E, R)
     and ``"D"`` (E, R), each with its ``"_name"`` mask as gymnasium's vector envs do, at
-    every step: ``"D"`` is zeros and its mask False until the last step of an episode. The
+    every step: ``"D"`` is zeros and its mask False until the last step of an episode; with
+    ``[failures]`` also ``"alive"`` (E, R) bool, the agents that have not failed. The
     wrapped :class:`RoverWorld` is ``world``; its recorded trajectories serve the fitness
     critics.
 
@@ -268,12 +273,15 @@ class RoverVectorEnv(VectorEnv):
         D = np.zeros((self.num_envs, w.config.n_rovers))
         if done.any():
             D[done] = w.D[done]
-        return {"G": G, "_G": every,
-                "rover_positions": w.rover_positions.copy(), "_rover_positions": every,
-                "rover_headings": w.rover_headings.copy(), "_rover_headings": every,
-                # Every step (keys never change): zeros, masked out, until a team's last
-                # step, as gymnasium's vector envs fill a key an env lacks.
-                "D": D, "_D": done}  # fmt: skip
+        infos = {"G": G, "_G": every,
+                 "rover_positions": w.rover_positions.copy(), "_rover_positions": every,
+                 "rover_headings": w.rover_headings.copy(), "_rover_headings": every,
+                 # Every step (keys never change): zeros, masked out, until a team's last
+                 # step, as gymnasium's vector envs fill a key an env lacks.
+                 "D": D, "_D": done}  # fmt: skip
+        if w.plan.step.failures is not None:
+            infos["alive"], infos["_alive"] = w.alive, every
+        return infos
 
     def play_episode(self, policy, headings: bool = True) -> RoverWorld:
         """One whole episode of every team under ``policy`` (``obs (E, R, n_obs) -> actions

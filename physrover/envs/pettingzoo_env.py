@@ -86,8 +86,14 @@ class RoverParallelEnv(ParallelEnv):
     option names are a ``ValueError``.
 
     ## Episode End
-    Truncated after ``steps`` steps (every agent at once); never terminated. After the
-    truncating step ``agents`` is empty; ``reset()`` starts a new episode.
+    Truncated after ``steps`` steps (every agent at once). After the truncating step
+    ``agents`` is empty; ``reset()`` starts a new episode. With ``[failures]`` (agents
+    that fail mid-episode, :mod:`physrover.config.failures`) an agent that fails is
+    terminated by the step into the state it fails at and leaves ``agents`` (one out from
+    the start, step 0, by the first step: every agent begins in ``agents``, its observation
+    0, so every one ends terminated or truncated). Its reward on that step is the
+    team's increase of G (``reward="G"``), or 0 under an episode-end credit (its credit,
+    what it did alive, is the episode's, known at the end).
 
     ## Info
     Per agent ``"G"`` (the team's score so far), ``"position"`` (2,) in world units and
@@ -191,6 +197,15 @@ class RoverParallelEnv(ParallelEnv):
         self.agents = list(self.possible_agents)
         return self._split(obs, info)
 
+    def _live(self) -> list[str]:
+        """The agents that have not failed (every agent without ``[failures]``)."""
+        alive = self.env.world.alive[0]
+        return [agent for agent, ok in zip(self.possible_agents, alive, strict=True) if ok]
+
+    @staticmethod
+    def _of(values: dict, agents: list[str]) -> dict:
+        return {agent: values[agent] for agent in agents}
+
     def _team_action(self, actions: Mapping[str, Any]) -> np.ndarray:
         """The (R, 2) action of ``RoverEnv.step`` from a dict with one (2,) action per agent."""
         missing = [agent for agent in self.agents if agent not in actions]
@@ -205,16 +220,18 @@ class RoverParallelEnv(ParallelEnv):
                 f"actions for unknown agents {', '.join(map(repr, unknown))}; "
                 f"the live agents are {', '.join(self.agents)}"
             )
-        rows = []
-        for agent in self.agents:
+        team = np.zeros((len(self.possible_agents), self.env.action_space.shape[1]))
+        for i, agent in enumerate(self.possible_agents):
+            if agent not in self.agents:  # failed: its command is ignored anyway
+                continue
             row = np.asarray(actions[agent])
             if row.shape != self.action_spaces[agent].shape:
                 raise ValueError(
                     f"the action of {agent} must have shape {self.action_spaces[agent].shape}, "
                     f"got {row.shape}"
                 )
-            rows.append(row)
-        return np.stack(rows)
+            team[i] = row
+        return team
 
     def step(self, actions: Mapping[str, Any]):
         """Advance every rover one step; returns (observations, rewards, terminations,
@@ -224,12 +241,14 @@ class RoverParallelEnv(ParallelEnv):
         obs, reward, _, truncated, info = self.env.step(self._team_action(actions))
         observations, infos = self._split(obs, info)
         credit = step_rewards(self.reward, self.env.world, bool(truncated), np.array([reward]))
-        rewards = {agent: float(r) for agent, r in zip(self.agents, credit[0], strict=True)}
-        terminations = dict.fromkeys(self.agents, False)
-        truncations = dict.fromkeys(self.agents, bool(truncated))
-        if truncated:
-            self.agents = []
-        return observations, rewards, terminations, truncations, infos
+        before, live = self.agents, set(self._live())
+        index = {agent: i for i, agent in enumerate(self.possible_agents)}
+        rewards = {agent: float(credit[0, index[agent]]) for agent in before}
+        terminations = {agent: agent not in live for agent in before}
+        truncations = dict.fromkeys(before, bool(truncated))
+        self.agents = [] if truncated else [agent for agent in before if agent in live]
+        return (self._of(observations, before), rewards, terminations, truncations,
+                self._of(infos, before))  # fmt: skip
 
     def state(self) -> np.ndarray:
         """The (R * obs_dim,) float32 observations of all rovers, concatenated in agent order."""

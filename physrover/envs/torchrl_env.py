@@ -11,6 +11,10 @@
   G this step (Eq. 11), the same for every rover of a team (the task is cooperative);
 - ``("rover", "info", "D")``: (E, R) float32, each rover's difference evaluation (Eq. 1)
   on the episode's last step, zeros before;
+- ``("rover", "mask")``: (E, R) bool, with ``[failures]`` only (agents that fail
+  mid-episode): the agents that have not failed, as TorchRL's PettingZoo wrapper marks
+  live agents (a failed agent's observation is 0, its action ignored, its reward the
+  team's);
 
 and the done flags ``"done"``, ``"terminated"`` (always False) and ``"truncated"`` (after
 ``steps`` steps), (E, 1) bool. With agent classes (``[[agents]]``) there is one group per
@@ -67,10 +71,14 @@ class RoverTorchEnv(EnvBase):
                                               shape=(E, rows.stop - rows.start))
                               for name, rows, n_obs in self.groups}, shape=(E,))  # fmt: skip
 
+        self.masked = self.config.failures.on
+        """Whether each group carries a ``"mask"`` of its live agents (``[failures]``)."""
+        mask = {"mask": lambda n: Categorical(2, (E, n), dtype=torch.bool, device=dev)}
         self.full_observation_spec = per_group(
             lambda n, n_obs: {
                 "observation": Unbounded((E, n, n_obs), dtype=f32, device=dev),
                 "info": Composite({"D": Unbounded((E, n), dtype=f32, device=dev)}, shape=(E, n)),
+                **{key: spec(n) for key, spec in mask.items() if self.masked},
             }
         )
         self.full_action_spec = per_group(
@@ -103,6 +111,8 @@ class RoverTorchEnv(EnvBase):
             out[name] = TensorDict(
                 {"observation": observation, "info": info}, batch_size=shape, device=self.device
             )
+            if self.masked:
+                out[name]["mask"] = torch.from_numpy(infos["alive"][:, rows].copy()).to(self.device)
         return out
 
     def _flags(self, truncated: np.ndarray) -> dict:
