@@ -98,3 +98,25 @@ def test_the_ccea_trains_a_team_that_loses_members_reproducibly():
     at = worlds[0].plan.step.failures.at
     assert (at[:, 3] == 0).all() and (worlds[0].D[:, 3] == 0).all()  # out from the start
     assert (at[:, 1] == 3).all() and (at != np.iinfo(np.int64).max).sum(1).min() == 3
+
+
+def test_a_failed_rover_is_drawn_grey_and_crossed_where_it_stopped():
+    from physrover.viz.classes import CROSS, FAILED
+    from physrover.viz.render import ROVER_PX, RenderConfig, Transform, rover_rgb, world_state
+
+    render = RenderConfig(width=320, height=320)
+    env = RoverEnv(n_rovers=2, n_req=1, steps=5, render_mode="rgb_array", render_config=render,
+                   failures={"given": [[1, 2]]})  # fmt: skip
+    env.reset(seed=0, options={"rover_positions": [(0.0, 6.0), (0.0, -6.0)]})
+    for _ in range(3):
+        env.step(np.array([[0.0, 0.0], [0.5, 0.0]]))
+    frame = env.render().astype(int)
+    tf = Transform.fit_states([world_state(env.world, 0)], env.config, render)
+    x0, y0 = np.round(tf(env.world.rover_positions[0, 0])).astype(int)
+    x1, y1 = np.round(tf(env.world.rover_positions[0, 1])).astype(int)
+    assert np.abs(frame[y0, x0] - rover_rgb(0)).max() <= 2  # alive: its own colour
+    off = ROVER_PX // 2 + 1  # beside the cross's centre, on the body
+    assert np.abs(frame[y1, x1 + off] - FAILED[::-1]).max() <= 2  # failed: grey
+    assert np.abs(frame[y1, x1] - CROSS[::-1]).max() <= 40  # and crossed
+    history = env.world.position_history[:4, 0, 1]  # states 0-3: it stopped at state 1
+    assert (history[2:] == history[1]).all() and (history[1] != history[0]).any()

@@ -4,6 +4,8 @@
   discs); agents of a class that does not (the lab's UAVs) get a diamond around the disc,
   in their colour.
 - The HUD's third line is a legend: each class's name, count and whether it captures.
+- A failed agent (``[failures]``) is drawn grey with a cross over it, where it stopped; the
+  HUD counts the failed.
 - A POI's capture ring has its own ``capture_radius``.
 - A POI hidden from some classes is labelled with the classes that see it (``sees: uav``);
   an ordered POI with the POIs it waits for (``after 0``).
@@ -34,6 +36,32 @@ def mark_classes(img, tf, now: np.ndarray, domain, radius_px: int, colour) -> No
             diamond = np.array([[x, y - size], [x + size, y], [x, y + size], [x - size, y]])
             cv2.polylines(img, [np.round(diamond).astype(np.int32)], True, colour(i), 2,
                           cv2.LINE_AA)  # fmt: skip
+
+
+FAILED = (105, 105, 105)
+"""A failed agent's body (BGR): a darker grey than a free POI's, no rover's colour."""
+CROSS = (30, 30, 30)
+
+
+def mark_failed(img, tf, now: np.ndarray, alive, radius_px: int) -> None:
+    """A grey body with a dark cross over each agent not ``alive`` ((R,) bool, or None: every
+    agent alive) at its (R, 2) world position ``now``."""
+    if alive is None:
+        return
+    for i in np.flatnonzero(~np.asarray(alive)):
+        x, y = np.round(tf(now[i : i + 1])[0]).astype(int)
+        cv2.circle(img, (x, y), radius_px, FAILED, -1, cv2.LINE_AA)
+        r = radius_px + 2
+        cv2.line(img, (x - r, y - r), (x + r, y + r), CROSS, 2, cv2.LINE_AA)
+        cv2.line(img, (x - r, y + r), (x + r, y - r), CROSS, 2, cv2.LINE_AA)
+
+
+def failure_legend(alive) -> list[tuple[str, float]]:
+    """The HUD's line on failed agents (text, size): none without ``[failures]``."""
+    if alive is None:
+        return []
+    alive = np.asarray(alive)
+    return [(f"failed (grey, crossed): {int((~alive).sum())} of {alive.size}", 0.4)]
 
 
 def class_legend(domain) -> list[tuple[str, float]]:
@@ -72,4 +100,5 @@ def ring_pixels(tf, domain, k: int) -> int:
     return max(1, int(tf.scale * radius))
 
 
-__all__ = ["class_legend", "mark_classes", "poi_rule_label", "ring_pixels"]
+__all__ = ["class_legend", "failure_legend", "mark_classes", "mark_failed", "poi_rule_label",
+           "ring_pixels"]  # fmt: skip

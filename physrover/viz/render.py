@@ -43,7 +43,7 @@ import numpy as np
 from physrover.config import ConfigBase, DomainConfig, check
 from physrover.config.domain import extent_of
 from physrover.domain.obstacles import box_corners
-from physrover.viz.classes import class_legend, mark_classes, poi_rule_label, ring_pixels
+from physrover.viz import classes as marks
 from physrover.viz.labels import (
     BACKGROUND,
     POI_CAPTURED,
@@ -206,6 +206,7 @@ class FrameState:
         capture_step: (K,) step at which each POI was first captured, -1 if not yet.
         poi_counts: (K,) rovers within d_cap of each POI now (Eq. 13, the world's count).
         step: current step t; G: score so far.
+        alive: (R,) bool, the agents that have not failed (``[failures]``); None: all.
     """
 
     positions: np.ndarray
@@ -216,6 +217,7 @@ class FrameState:
     poi_counts: np.ndarray
     step: int
     G: float
+    alive: np.ndarray | None = None
 
 
 def _pt(p) -> tuple[int, int]:
@@ -265,7 +267,7 @@ def _draw_pois(img, tf: Transform, state, domain: DomainConfig) -> list:
     for k, value in enumerate(state.poi_values):
         captured = 0 <= state.capture_step[k] <= state.step
         colour = POI_CAPTURED if captured else POI_FREE
-        cv2.circle(img, centres[k], ring_pixels(tf, domain, k), colour, 1, aa)
+        cv2.circle(img, centres[k], marks.ring_pixels(tf, domain, k), colour, 1, aa)
         cv2.circle(img, centres[k], int(4 + 8 * value / vmax), colour, -1, aa)
     return centres
 
@@ -329,7 +331,8 @@ def draw_frame(
     centres = _draw_pois(img, tf, state, domain)
     _draw_rovers(img, tf, state.positions[-(render.trail + 1) :], state.headings, domain,
                  render.ids)  # fmt: skip
-    mark_classes(img, tf, state.positions[-1], domain, ROVER_PX, rover_colour)
+    marks.mark_classes(img, tf, state.positions[-1], domain, ROVER_PX, rover_colour)
+    marks.mark_failed(img, tf, state.positions[-1], state.alive, ROVER_PX)
     if state.positions.shape[1] > CROWD:
         _draw_pois(img, tf, state, domain)
     # POI labels on top of the rovers, each where it covers the fewest rovers: the value
@@ -337,8 +340,8 @@ def draw_frame(
     bodies = [label_box(_pt(p), ROVER_PX) for p in tf(state.positions[-1])]
     placed: list = []
     for k, ((x, y), value) in enumerate(zip(centres, state.poi_values, strict=True)):
-        ring = ring_pixels(tf, domain, k)
-        text = f"{value:g} {poi_rule_label(domain, k)}".strip()
+        ring = marks.ring_pixels(tf, domain, k)
+        text = f"{value:g} {marks.poi_rule_label(domain, k)}".strip()
         spots = [(x + 12, y - 10, "left"), (x - 12, y - 10, "right"), (x + 12, y + 20, "left"),
                  (x - 12, y + 20, "right")]  # fmt: skip
         label_at(img, text, spots, 0.45, TEXT, 1, bodies + placed, placed)
@@ -351,7 +354,8 @@ def draw_frame(
     collisions = f" (collisions {'on' if domain.physics.collisions else 'off'})"
     motion = domain.motion + (collisions if domain.motion == "physics" else "")
     lines = [(f"step {state.step}/{domain.steps}   G {state.G:g}", 0.55),
-             (f"n_req {domain.n_req}   {motion}", 0.55), *class_legend(domain)]  # fmt: skip
+             (f"n_req {domain.n_req}   {motion}", 0.55), *marks.class_legend(domain),
+             *marks.failure_legend(state.alive)]  # fmt: skip
     for j, (text, size) in enumerate(lines):
         text_at(img, text, (10, 20 + 20 * j), size, TEXT)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
@@ -370,6 +374,7 @@ def world_state(world, team: int) -> FrameState:
         poi_counts=np.array(world.poi_counts[team]),
         step=t,
         G=float(world.G[team]),
+        alive=world.alive[team] if world.plan.step.failures is not None else None,
     )
 
 
