@@ -83,6 +83,14 @@ def test_the_env_benchmarl_builds_passes_torchrls_checks(task):
     assert task_class.supports_continuous_actions() and not task_class.supports_discrete_actions()
 
 
+def test_failing_agents_mask_is_an_info_not_a_model_input():
+    task_class = PhysroverTask.ROVER_DOMAIN.get_task({**SMALL, "failures": {"n_failing": 1}})
+    env = task_class.get_env_fun(num_envs=3, continuous_actions=True, seed=5, device="cpu")()
+    check_env_specs(env, seed=0)
+    assert set(task_class.observation_spec(env)[GROUP].keys()) == {"observation"}
+    assert set(task_class.info_spec(env)[GROUP].keys()) == {"info", "mask"}
+
+
 def test_a_seed_gives_the_same_episodes():
     task_class = PhysroverTask.ROVER_DOMAIN.get_task(SMALL)
 

@@ -126,8 +126,12 @@ class PhysroverClass(TaskClass):
         return None
 
     def observation_spec(self, env: EnvBase) -> Composite:
+        """The group's observations alone (BenchMARL's models take every key here as an
+        input): the info and, with ``[failures]``, the live agents' mask are infos."""
         spec = env.full_observation_spec_unbatched.clone()
         del spec[(GROUP, "info")]
+        if (GROUP, "mask") in spec.keys(True):
+            del spec[(GROUP, "mask")]
         return spec
 
     def info_spec(self, env: EnvBase) -> Composite | None:
