@@ -681,7 +681,8 @@ def lab_influence_sets(complete, i, timescale, credit):
     (0/1), as ``RewardComputer`` writes it (``computer.hpp``: ``prep_all_or_nothing_influence``
     for the trajectory, ``create_{local,allornothing,system,difference}_influence_array``
     for steps). One change, physrover's rule: AllOrNothing credits nobody where nobody
-    influences k (the lab's ``highest_influence = -1`` credits agent 0)."""
+    influences k (the lab's ``highest_influence = -1`` credits agent 0: ``credit``
+    "AllOrNothing-lab", the compatibility option, is the lab's as it is)."""
     n_steps, n = len(complete), len(complete[0])
     if timescale == "trajectory":
         counters = [[sum(complete[t][u][k] for t in range(n_steps)) for u in range(n)]
@@ -700,8 +701,10 @@ def lab_influence_sets(complete, i, timescale, credit):
         for k in range(n):
             if credit == "Local":
                 hit = complete[t][i][k] == 1
-            elif credit == "AllOrNothing":
-                i_credit, highest_influence = -1, 0  # the lab: -1
+            elif credit in ("AllOrNothing", "AllOrNothing-lab"):
+                # physrover: nobody credited where nobody influences; the lab's code starts
+                # at -1, so the first agent takes a (t, k) that nobody influenced
+                i_credit, highest_influence = -1, (-1 if credit == "AllOrNothing-lab" else 0)
                 for u in range(n):
                     if complete[t][u][k] > highest_influence:
                         i_credit, highest_influence = u, complete[t][u][k]

@@ -191,7 +191,8 @@ def test_random_episodes_credit_as_the_oracle(seed, name):
 
 LAB_CREDITS = {"ID": ("trajectory", ""), "ID-step": ("timestep", "AllOrNothing"),
                "ID-step-local": ("timestep", "Local"), "ID-step-system": ("timestep", "System"),
-               "ID-step-difference": ("timestep", "Difference")}  # fmt: skip
+               "ID-step-difference": ("timestep", "Difference"),
+               "ID-step-all-or-nothing-lab": ("timestep", "AllOrNothing-lab")}  # fmt: skip
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -309,3 +310,24 @@ def test_the_ccea_trains_each_class_on_its_own_feedback():
 def test_the_credits_are_feedback_names():
     assert LearnConfig(feedback="ID").feedback == "ID"
     assert LearnConfig(feedback="ID-step").feedback == "ID-step"
+
+
+def test_the_labs_all_or_nothing_gives_agent_0_the_steps_nobody_influenced():
+    """A UAV first in the team (agent 0), then the rover and a second UAV: the rover
+    captures at step 1 with nobody near. physrover's AllOrNothing credits nobody with that
+    step (the UAVs get 0); the lab's code gives it to agent 0, the far UAV (2); where the
+    second UAV is near at the capture, both rules credit it alone."""
+    uav = '\ncaptures = false\naction = "world"\ninfluence_radius = 5.0\n'
+    uav_first = DomainConfig.from_toml(
+        '[domain]\nn_req = 1\n[[agents]]\nname = "lead"'
+        + uav
+        + '[[agents]]\nname = "rover"\n[[agents]]\nname = "uav"'
+        + uav
+    )
+    alone = [[AWAY, FAR, AWAY], [AWAY, AT, AWAY], [AWAY, FAR, AWAY]]
+    lab = CREDITS["ID-step-all-or-nothing-lab"]
+    assert CREDITS["ID-step"](_episode(alone, domain=uav_first))[0].tolist() == [0.0, 2.0, 0.0]
+    assert lab(_episode(alone, domain=uav_first))[0].tolist() == [2.0, 2.0, 0.0]
+    near = [[AWAY, FAR, AWAY], [AWAY, AT, (3.0, 0.0)], [AWAY, FAR, AWAY]]
+    for name in ("ID-step", "ID-step-all-or-nothing-lab"):
+        assert CREDITS[name](_episode(near, domain=uav_first))[0].tolist() == [0.0, 2.0, 2.0]

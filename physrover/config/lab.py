@@ -41,7 +41,8 @@ The conventions, each the lab's code as it runs (``src/influence/custom_env.py``
   and bound moves with it: distances, bearings and moves do not change).
 
 The differences physrover keeps on purpose (its credits' pages list them: AllOrNothing's
-agent 0) are physrover's rules here too.
+agent 0) are physrover's rules here too; ``feedback = "ID-step-all-or-nothing-lab"`` is the
+lab's AllOrNothing as its code computes it, for a lab user who needs its numbers back.
 """
 
 from __future__ import annotations

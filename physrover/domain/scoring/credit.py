@@ -13,9 +13,9 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
 - ``"D-partial"``: D where the team captured, else each rover's difference to how near
   the team came to its couplings (an exploration credit, beyond the paper);
 - ``"ID"``, ``"ID-step"``, ``"ID-step-local"``, ``"ID-step-system"``,
-  ``"ID-step-difference"``, ``"ID-manual"``: IndirectDifference
-  (:mod:`physrover.domain.scoring.influence`), which credits an agent (a UAV) with the
-  captures of the agents it was near.
+  ``"ID-step-difference"``, ``"ID-step-all-or-nothing-lab"``, ``"ID-manual"``:
+  IndirectDifference (:mod:`physrover.domain.scoring.influence`), which credits an agent
+  (a UAV) with the captures of the agents it was near.
 
 The gradient-based trainers and the PettingZoo env take the same names (``reward``):
 :func:`step_rewards` gives the signal at an episode's last step ("G" stays the team's

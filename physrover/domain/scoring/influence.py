@@ -25,7 +25,11 @@ with it:
 - ``"ID-step-system"`` (``credit = System``): every (t, k) with ``phi_t(u, k)`` for any u,
   the same for every agent, so an agent that influences nobody is credited too;
 - ``"ID-step-difference"`` (``credit = Difference``): the (t, k) that i alone influences
-  (``phi_t(i, k)`` and no other u's).
+  (``phi_t(i, k)`` and no other u's);
+- ``"ID-step-all-or-nothing-lab"``: AllOrNothing as the lab's code computes it, where
+  nobody influences k at t agent 0 owns it (``create_allornothing_influence_array``:
+  ``highest_influence = -1``, so the first agent takes a (t, k) of influence 0); a
+  compatibility option to get the lab's numbers back (below).
 
 An agent that influences nobody gets D_i exactly (but under ``"ID-step-system"``), so
 without influencers all are D. Differences from the lab's code, on purpose:
@@ -63,9 +67,10 @@ from physrover.domain.scoring.rules import PoiRules
 
 TIMESCALES = ("trajectory", "step")
 
-STEP_RULES = ("all-or-nothing", "local", "system", "difference")
+STEP_RULES = ("all-or-nothing", "local", "system", "difference", "all-or-nothing-lab")
 """Who is credited with a (t, k) at the ``"step"`` timescale (the lab's ``credit``:
-AllOrNothing, Local, System, Difference; module docstring)."""
+AllOrNothing, Local, System, Difference; and AllOrNothing with the lab's agent 0 rule;
+module docstring)."""
 
 
 def influence(world) -> np.ndarray:
@@ -114,8 +119,10 @@ def removal_sets(phi: np.ndarray, timescale: str, rule: str = "all-or-nothing") 
     elif rule == "difference":
         alone = by_agent.sum(axis=1, keepdims=True) == 1
         owned = by_agent & alone
-    else:  # all-or-nothing: the lowest-index influencer
-        owner = np.where(phi.any(axis=2), phi.argmax(axis=2), -1)  # (T_s, E, k)
+    else:  # all-or-nothing: the lowest-index influencer (the lab's: agent 0 if none)
+        owner = phi.argmax(axis=2)  # (T_s, E, k)
+        if rule == "all-or-nothing":
+            owner = np.where(phi.any(axis=2), owner, -1)
         owned = owner.transpose(1, 0, 2)[:, None] == np.arange(n)[None, :, None, None]
     return own | owned  # (E, A, T_s, R)
 
