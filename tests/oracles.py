@@ -227,11 +227,12 @@ def score_episode(
 # ----------------------------------------------------------------------------------------------
 
 
-def policy_actions(genomes: np.ndarray, hidden: int, obs: np.ndarray) -> np.ndarray:
+def policy_actions(genomes: np.ndarray, hidden: int, obs: np.ndarray,
+                   activation: str = "relu") -> np.ndarray:  # fmt: skip
     """(E, R, 2) float32 actions of (E, R, P) genomes (layout ``W1 (n_in x H) | b1 | W2 |
-    b2``) on (E, R, n_in) observations, by matrix products."""
+    b2``) on (E, R, n_in) observations, by matrix products; a ReLU or tanh hidden layer."""
     layout = _PolicyWeights(hidden, obs.shape[-1])
-    return layout.forward(layout.split(genomes), obs)
+    return layout.forward(layout.split(genomes), obs, activation)
 
 
 class _PolicyWeights:
@@ -252,13 +253,17 @@ class _PolicyWeights:
             np.ascontiguousarray(genomes[..., b[3] : b[4]]),
         )
 
-    def forward(self, weights: tuple[np.ndarray, ...], obs: np.ndarray) -> np.ndarray:
+    def forward(self, weights: tuple[np.ndarray, ...], obs: np.ndarray,
+                activation: str = "relu") -> np.ndarray:  # fmt: skip
         """Actions from :meth:`split` weights of shape (E, R, ...) and (E, R, 8) observations:
         (E, R, 2) float32 in (-1, 1)."""
         w1, b1, w2, b2 = weights
         h = (obs[..., None, :].astype(np.float32) @ w1)[..., 0, :]
         h += b1
-        np.maximum(h, 0.0, out=h)
+        if activation == "tanh":
+            np.tanh(h, out=h)
+        else:
+            np.maximum(h, 0.0, out=h)
         out = (h[..., None, :] @ w2)[..., 0, :]
         out += b2
         return np.tanh(out, out=out)

@@ -19,7 +19,7 @@ def test_the_labs_example_config_becomes_a_run_that_says_what_differs(tmp_path, 
     out = tmp_path / "run.toml"
     assert main(["import-lab", str(EXAMPLE), "-o", str(out)]) == 0
     err = capsys.readouterr().err
-    assert "note: hidden layer: ReLU here, tanh in the lab" in err
+    assert "hidden layer" not in err  # the lab's network: tanh, U(-1, 1), as the lab's
     assert "note: 50 trials: one run per seed" in err
     text = out.read_text()
     assert text.startswith("# config.yaml, a config of the paper's lab")
@@ -30,6 +30,7 @@ def test_the_labs_example_config_becomes_a_run_that_says_what_differs(tmp_path, 
     # ccea: 50 policies, one hidden layer of 15, Gaussian mutation p 0.5 sd 0.1, softmax
     # teams, 10 individual and 10 team elites, 2000 generations of 50 steps, one rollout
     assert (learn.population, learn.hidden, learn.generations, domain.steps) == (50, 15, 2000, 50)
+    assert (learn.activation, learn.weight_init) == ("tanh", "uniform")
     assert (learn.mutation, learn.mutation_rate, learn.mutation_scale) == ("gauss", 0.5, 0.1)
     assert (learn.team_formation, learn.selection) == ("softmax", "elites")
     assert (learn.n_individual_elites, learn.n_team_elites, learn.method) == (10, 10, "D")

@@ -7,7 +7,7 @@ from conftest import assert_same_run
 from gymnasium.utils.env_checker import check_env
 from oracles import policy_actions
 
-from physrover.config import ConfigError, DomainConfig, RunConfig
+from physrover.config import ConfigError, DomainConfig, LearnConfig, RunConfig
 from physrover.envs import RoverEnv
 from physrover.experiment.training import train
 from physrover.learn.ccea import CCEA
@@ -39,7 +39,7 @@ hidden = 5
 
 def test_each_class_has_its_own_policy_shape():
     domain = DomainConfig.from_toml(MIXED.split("[learn]")[0])
-    layouts = team_layout(5, domain)
+    layouts = team_layout(LearnConfig(hidden=5), domain)
     assert isinstance(layouts, ClassLayouts)
     assert [layout.n_in for layout in layouts.layouts] == [8, 6]
     sizes = [PolicyLayout(5, 8).size, PolicyLayout(5, 6).size]
@@ -51,7 +51,8 @@ def test_each_class_has_its_own_policy_shape():
     np.testing.assert_array_equal(genomes[:3], rover)
     np.testing.assert_array_equal(genomes[3:, :, : sizes[1]], uav)
     assert (genomes[3:, :, sizes[1] :] == 0).all()
-    assert isinstance(team_layout(5, DomainConfig()), PolicyLayout)  # the paper's team
+    paper = team_layout(LearnConfig(hidden=5), DomainConfig())
+    assert isinstance(paper, PolicyLayout)  # the paper's team
 
 
 def test_a_class_policy_reads_its_own_columns():

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from physrover.config import ConfigError, DomainConfig
+from physrover.config import ConfigError, DomainConfig, LearnConfig
 from physrover.domain.world import RoverWorld, StartOverrides
 
 TEAM = """
@@ -196,7 +196,7 @@ def test_a_pick_policy_plays_its_largest_output_as_the_lab_does():
     from physrover.learn.classes import team_layout
 
     domain = DomainConfig.from_toml(TEAM.format(action="pick", steps=3, motion="ideal"))
-    layout = team_layout(6, domain)
+    layout = team_layout(LearnConfig(hidden=6), domain)
     rover = layout.layouts[0]
     assert (rover.n_out, rover.n_in) == (3, 2)  # 2 UAVs + stay; one distance per UAV
     rng = np.random.default_rng(0)

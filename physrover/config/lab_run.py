@@ -21,8 +21,6 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
     if len(hidden) != 1:
         raise ConfigError("ccea.network.hidden_layers", f"physrover's policies have one hidden "
                           f"layer, got {hidden}")  # fmt: skip
-    notes.append("hidden layer: ReLU here, tanh in the lab; weights start U(+-1/sqrt(fan_in)) "
-                 "here, U(-1, 1) in the lab")  # fmt: skip
     mutation = get(ccea, "mutation", "ccea")
     if float(mutation.get("mean", 0.0)) != 0.0:
         raise ConfigError("ccea.mutation.mean", f"physrover's noise has mean 0, got "
@@ -44,7 +42,8 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
     return {"method": "D", "generations": int(get(ccea, "num_generations", "ccea")),
             "population": int(get(get(ccea, "populations", "ccea"), "agent_population_size",
                                    "ccea.populations")),
-            "hidden": int(hidden[0]), "mutation": "gauss",
+            "hidden": int(hidden[0]), "activation": "tanh", "weight_init": "uniform",
+            "mutation": "gauss",
             "mutation_rate": float(get(mutation, "independent_probability", "ccea.mutation")),
             "mutation_scale": float(get(mutation, "std_deviation", "ccea.mutation")),
             "team_formation": formations[formation], "softmax_temperature": 1.0,

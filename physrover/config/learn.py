@@ -44,6 +44,11 @@ class LearnConfig(ConfigBase):
     """Policies per rover, k."""
     hidden: int = 32
     """Hidden units of each policy (8 -> hidden -> 2, ReLU then tanh)."""
+    activation: str = "relu"
+    """The policies' hidden layer: "relu" (the paper's) or "tanh" (the lab's code's)."""
+    weight_init: str = "fan-in"
+    """The policies' initial weights and biases: "fan-in", uniform in +-1/sqrt(fan_in)
+    (PyTorch's default), or "uniform", in +-1 (the lab's code's)."""
     mutation_rate: float = 0.01
     """Probability that an offspring's weight is mutated."""
     mutation_scale: float = 1.0
@@ -142,6 +147,8 @@ class LearnConfig(ConfigBase):
     def _check_ccea_options(self) -> None:
         """The CCEA's team formation, selection and mutation options."""
         check_choice(self.mutation, ("cauchy", "gauss"), "mutation")
+        check_choice(self.activation, ("relu", "tanh"), "activation")
+        check_choice(self.weight_init, ("fan-in", "uniform"), "weight_init")
         check_choice(self.team_formation, ("random", "softmax", "rank"), "team_formation")
         check_choice(self.selection, ("tournament", "elites"), "selection")
         check(

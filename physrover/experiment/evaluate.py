@@ -118,7 +118,7 @@ def play_champion(
     domain = config.domain.replace(**changes)
     generation, genomes = load_champions(run_dir, checkpoint)
     env = RoverVectorEnv(episodes, config=domain, fresh_teams=episodes)  # each its own start
-    act = team_layout(config.learn.hidden, domain).prepare(
+    act = team_layout(config.learn, domain).prepare(
         np.broadcast_to(genomes, (episodes, *genomes.shape))
     )
     obs, _ = env.reset(seed=seed)

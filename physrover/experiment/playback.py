@@ -81,7 +81,7 @@ def record_run(
     if side_by_side:
         domains = [config.domain.replace(motion="ideal"), config.domain.replace(motion="physics")]
     envs = [RoverEnv(config=d) for d in domains]
-    layout = team_layout(config.learn.hidden, config.domain)
+    layout = team_layout(config.learn, config.domain)
     width = render.width * len(envs) + DIVIDER_PX * (len(envs) - 1)
     scores = []
     with VideoWriter(out, width, render.height, render.fps) as video:

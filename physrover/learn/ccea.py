@@ -84,7 +84,7 @@ class CCEA:
         self.n_rovers, self.k = d.n_rovers, cfg.population
         obs_space, action_space = team_spaces(d)  # sizes from the sensor and the domain
         n_obs, n_act = obs_space.shape[-1], action_space.shape[-1]
-        self.layout = team_layout(cfg.hidden, d)  # one per agent class (learn.classes)
+        self.layout = team_layout(cfg, d)  # one per agent class (learn.classes)
         seeds = np.random.SeedSequence(cfg.seed).spawn(6)
         init_rng, self.team_rng, self.evo_rng, critic_init, self.critic_rng, env_seq = [
             np.random.default_rng(s) for s in seeds

@@ -30,12 +30,13 @@ class ClassLayouts:
     """The policy layouts of a team's classes, with PolicyLayout's ``init``, ``prepare``
     and ``act`` over the padded (R, k, P) genomes (module docstring)."""
 
-    def __init__(self, hidden: int, domain):
+    def __init__(self, hidden: int, domain, *network: str):
         self.rows = class_rows(domain)
         dims = [sensor_size(c.sensor or domain.sensor, domain) for c in domain.agents]
         outs = [pick_count(domain, c) + 1 if a.action == "pick" else 2
                 for c, a in enumerate(domain.agents)]  # fmt: skip
-        self.layouts = [PolicyLayout(hidden, d, n) for d, n in zip(dims, outs, strict=True)]
+        self.layouts = [PolicyLayout(hidden, d, n, *network)
+                        for d, n in zip(dims, outs, strict=True)]  # fmt: skip
         self.hidden = hidden
         self.n_in = max(dims)
         self.size = max(layout.size for layout in self.layouts)
@@ -77,11 +78,14 @@ class MixedTeamPolicy:
         return out
 
 
-def team_layout(hidden: int, domain) -> PolicyLayout | ClassLayouts:
-    """The policies' layout of ``domain``'s team (module docstring)."""
+def team_layout(learn, domain) -> PolicyLayout | ClassLayouts:
+    """The policies' layout of ``domain``'s team (module docstring), of the network
+    ``learn`` (a :class:`~physrover.config.LearnConfig`) says: ``hidden``, ``activation``,
+    ``weight_init``."""
+    network = (learn.activation, learn.weight_init)
     if not domain.agents:
-        return PolicyLayout(hidden, sensor_size(domain.sensor, domain))
-    return ClassLayouts(hidden, domain)
+        return PolicyLayout(learn.hidden, sensor_size(domain.sensor, domain), 2, *network)
+    return ClassLayouts(learn.hidden, domain, *network)
 
 
 __all__ = ["ClassLayouts", "MixedTeamPolicy", "team_layout"]

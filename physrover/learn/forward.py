@@ -1,5 +1,6 @@
 """The one implementation of the policies' forward pass (paper Section 4.2): an
-``n_in -> hidden -> 2`` network with a ReLU hidden layer and a tanh output "to simulate motor
+``n_in -> hidden -> 2`` network with a ReLU hidden layer (or tanh, the lab's:
+``tanh_hidden``, ``[learn] activation``) and a tanh output "to simulate motor
 saturation", compiled, for a team at a time (:func:`forward_team`, which the whole-episode
 rollout calls every step) or a batch of teams (:func:`policy_forward`, the per-step path).
 
@@ -55,11 +56,12 @@ def tanh32(x):
 
 
 @jit
-def forward_team(genomes, hidden, obs, out, dims, h):
+def forward_team(genomes, hidden, obs, out, dims, h, tanh_hidden=False):
     """Actions ``out`` (R, 2) float32 of one team's R rovers: rover r plays genome
     ``genomes[r]`` (P,) on ``obs[r]`` (n_in,), laid out as :class:`PolicyLayout` says
     (``W1 (n_in x H) | b1 | W2 (H x 2) | b2``). ``dims``: n_in zeros
-    (:func:`physrover.core.compiled.dims`); ``h`` (H,) float32 scratch for the hidden layer.
+    (:func:`physrover.core.compiled.dims`); ``h`` (H,) float32 scratch for the hidden layer,
+    ReLU, or :func:`tanh32` if ``tanh_hidden``.
     """
     n_in = len(dims)
     n_rovers = genomes.shape[0]
@@ -74,7 +76,7 @@ def forward_team(genomes, hidden, obs, out, dims, h):
             a = g[b1_at + u]
             for i in range(n_in):
                 a += x[i] * g[i * hidden + u]
-            h[u] = max(a, np.float32(0.0))
+            h[u] = tanh32(a) if tanh_hidden else max(a, np.float32(0.0))
         p0 = p1 = p2 = p3 = q0 = q1 = q2 = q3 = np.float32(0.0)
         for u in range(0, whole, 4):
             w = w2_at + 2 * u
@@ -97,10 +99,10 @@ def forward_team(genomes, hidden, obs, out, dims, h):
 
 
 @jit
-def pick_forward(genomes, hidden, n_choices, obs, out):
+def pick_forward(genomes, hidden, n_choices, obs, out, tanh_hidden=False):
     """The commands ``out`` (E, R, 2) float32 of picking agents (``action = "pick"``): agent
     r of team e plays genome ``genomes[e, r]`` (``W1 (n_in x H) | b1 | W2 (H x n_choices) |
-    b2``) on ``obs[e, r]`` (n_in,) float32, a ReLU hidden layer, then ``n_choices`` linear
+    b2``) on ``obs[e, r]`` (n_in,) float32, a ReLU (or tanh) hidden layer, then ``n_choices`` linear
     outputs (each ``b2`` plus its hidden units in order); the largest (the first of ties; the
     lab's softmax and argmax) picks j, written as the centre of pick bin j of [-1, 1],
     ``-1 + (2 j + 1) / n_choices`` (:func:`physrover.domain.agents.roles.pick_moves`), and 0."""
@@ -116,7 +118,7 @@ def pick_forward(genomes, hidden, n_choices, obs, out):
                 a = g[b1_at + u]
                 for i in range(n_in):
                     a += obs[e, r, i] * g[i * hidden + u]
-                h[u] = max(a, np.float32(0.0))
+                h[u] = tanh32(a) if tanh_hidden else max(a, np.float32(0.0))
             best, choice = np.float32(-np.inf), 0
             for j in range(n_choices):
                 z = g[b2_at + j]
@@ -132,23 +134,25 @@ class PickPolicy:
     """Fixed genomes of picking agents as a policy ``obs (E, R, n_in) -> commands (E, R,
     2)`` (:func:`pick_forward`)."""
 
-    def __init__(self, genomes: np.ndarray, hidden: int, n_in: int, n_choices: int):
+    def __init__(self, genomes: np.ndarray, hidden: int, n_in: int, n_choices: int,
+                 tanh_hidden: bool = False):  # fmt: skip
         self.genomes = np.ascontiguousarray(genomes, dtype=np.float32)
         self.hidden, self.n_in, self.n_choices = int(hidden), int(n_in), int(n_choices)
+        self.tanh_hidden = bool(tanh_hidden)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         obs = np.ascontiguousarray(obs, dtype=np.float32)
         if obs.shape[-1] != self.n_in:
             raise ValueError(f"observations must have {self.n_in} inputs, got {obs.shape}")
         out = np.empty((*self.genomes.shape[:-1], 2), dtype=np.float32)
-        pick_forward(self.genomes, self.hidden, self.n_choices, obs, out)
+        pick_forward(self.genomes, self.hidden, self.n_choices, obs, out, self.tanh_hidden)
         return out
 
 
 @jit
-def policy_forward(genomes, hidden, obs, out, dims):
+def policy_forward(genomes, hidden, obs, out, dims, tanh_hidden=False):
     """Actions of every rover of every team: genomes (E, R, P) float32, obs (E, R, n_in)
     float32, out (E, R, 2) float32 written with :func:`forward_team`, team by team."""
     h = np.empty(hidden, np.float32)
     for e in range(genomes.shape[0]):
-        forward_team(genomes[e], hidden, obs[e], out[e], dims, h)
+        forward_team(genomes[e], hidden, obs[e], out[e], dims, h, tanh_hidden)

@@ -38,11 +38,13 @@ class TeamPolicy:
             :class:`~physrover.learn.policies.PolicyLayout`.
         hidden: H, the hidden units.
         n_in: the observation size.
+        tanh_hidden: a tanh hidden layer (the lab's) instead of ReLU (the paper's).
     """
 
-    def __init__(self, genomes: np.ndarray, hidden: int, n_in: int):
+    def __init__(self, genomes: np.ndarray, hidden: int, n_in: int, tanh_hidden: bool = False):
         self.genomes = np.ascontiguousarray(genomes, dtype=np.float32)
         self.hidden, self.n_in = int(hidden), int(n_in)
+        self.tanh_hidden = bool(tanh_hidden)
         self.dims = dims(self.n_in)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
@@ -50,7 +52,7 @@ class TeamPolicy:
         if obs.shape[-1] != self.n_in:
             raise ValueError(f"observations must have {self.n_in} inputs, got {obs.shape}")
         out = np.empty((*self.genomes.shape[:-1], 2), dtype=np.float32)
-        policy_forward(self.genomes, self.hidden, obs, out, self.dims)
+        policy_forward(self.genomes, self.hidden, obs, out, self.dims, self.tanh_hidden)
         return out
 
     def play(self, world: RoverWorld, obs: np.ndarray, headings: bool = True) -> None:
@@ -59,11 +61,12 @@ class TeamPolicy:
 
 
 @jit
-def policy_episode(genomes, hidden, in_dims, headings, plan, observations, actions,
-                   position_history, heading_history, *state):  # fmt: skip
+def policy_episode(genomes, hidden, tanh_hidden, in_dims, headings, plan, observations,
+                   actions, position_history, heading_history, *state):  # fmt: skip
     """Steps 1 .. T of an episode of every team (after the world's reset, which sensed and
     scored step 0), the policies choosing the commands: for each team and step, the forward
-    pass of its agents' ``genomes`` (E, R, P) on ``observations[t]``, then the world's step
+    pass of its agents' ``genomes`` (E, R, P) on ``observations[t]`` (a tanh hidden layer
+    if ``tanh_hidden``), then the world's step
     (:func:`~physrover.domain.step.step_team` under ``plan``, the world's
     :class:`~physrover.domain.plan.StepPlan`) into ``observations[t + 1]`` (the last step's
     into scratch), the records and the histories (headings NaN unless ``headings``).
@@ -79,7 +82,8 @@ def policy_episode(genomes, hidden, in_dims, headings, plan, observations, actio
     scratch = step_scratch(plan, n_rovers)
     for e in range(n_teams):
         for t in range(steps):
-            forward_team(genomes[e], hidden, observations[t, e], commands[e], in_dims, h)
+            forward_team(genomes[e], hidden, observations[t, e], commands[e], in_dims, h,
+                         tanh_hidden)  # fmt: skip
             if not commands_ok(commands[e]):
                 return False
             obs = observations[t + 1] if t + 1 < steps else last_obs
@@ -109,11 +113,12 @@ def play_episode(world: RoverWorld, obs: np.ndarray, policy, headings: bool = Tr
         )
     if policy.n_in != world.obs_dim:
         raise ValueError(f"policies take {policy.n_in} inputs, the sensor gives {world.obs_dim}")
-    genomes, hidden, in_dims, with_headings = (
+    genomes, hidden, tanh_hidden, in_dims, with_headings = (
         policy.genomes,
         policy.hidden,
+        policy.tanh_hidden,
         policy.dims,
         bool(headings),
     )
-    world.play(lambda *records: policy_episode(genomes, hidden, in_dims, with_headings,
-                                               *records))  # fmt: skip
+    world.play(lambda *records: policy_episode(genomes, hidden, tanh_hidden, in_dims,
+                                               with_headings, *records))  # fmt: skip
