@@ -261,6 +261,39 @@ def test_the_results_page_table_is_the_committed_sweep_s():
             assert float(cell.split("+-")[0]) == round(final[method, n_req], 2), (method, n_req)
 
 
+def test_the_standing_table_on_the_site_is_the_committed_cells():
+    """Every cell of the Results page's standing table is the committed cells.md value
+    of the sweep its row names (mean and 95% interval, as rounded there)."""
+    cells = {}
+    for path in ("cells.md", "standing-table/cells.md", "standing-table-low/cells.md"):
+        sweep = None
+        for line in (ROOT / "experiments/results" / path).read_text().splitlines():
+            if line.startswith("### "):
+                sweep = line[4:].strip()
+            elif line.startswith("| ") and "+-" in line.split("|")[-3]:
+                parts = [c.strip() for c in line.strip("|").split("|")]
+                if not parts[1].isdigit():  # the header
+                    continue
+                feedback = parts[2] if sweep == "standing-table" else "D"
+                cells[sweep, parts[0], feedback, int(parts[1])] = parts[-2]
+    rows = {"D": ("D", "D"), "G": ("G", "D"), "D on D++": ("D", "D++"),
+            "average of 10 episodes": ("average", "D"), "mean critic": ("mean-critic", "D"),
+            "max critic": ("max-critic", "D")}  # fmt: skip
+    page = (DOCS / "results.md").read_text()
+    table = page[page.index("| method | n_req 1 |") :].split("\n\n")[0].splitlines()[2:]
+    assert [line.split("|")[1].strip() for line in table] == list(rows)
+    for line in table:
+        parts = [c.strip().strip("*") for c in line.strip("|").split("|")]
+        method, feedback = rows[parts[0]]
+        sweeps = [name.strip(" `") for name in parts[7].split(",")]
+        for n_req, shown in enumerate(parts[1:7], start=1):
+            found = [cells[s, method, feedback, n_req] for s in sweeps
+                     if (s, method, feedback, n_req) in cells]  # fmt: skip
+            assert len(found) == 1, (parts[0], n_req)
+            expected = "0.00" if found[0] == "0.00 +- 0.00" else found[0]
+            assert shown == expected, (parts[0], n_req, shown, expected)
+
+
 def test_results_in_full_are_on_the_site_without_their_data():
     """RESULTS.md is a page of the site (its links to the docs rewritten by docs/hooks.py),
     its figures with it, the CSVs behind them not (46 MB the site never showed)."""
