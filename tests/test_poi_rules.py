@@ -488,3 +488,46 @@ def test_the_labs_quartz_fixture_scores_as_the_lab_recorded():
     assert world.G[0] == pytest.approx(meta["team_fitness"], rel=1e-12)
     assert world.D[0, 0] == pytest.approx(expected, rel=1e-12)
     assert world.D[0, 1] == 0.0  # the UAV does not count (its ID credit is not yet here)
+
+
+def test_pois_spawn_by_rules_of_their_own_each_team_from_its_generator():
+    """``[[pois]] spawn``: a fixed POI where it is put, a box's uniform in its box, a
+    circle's on its circle, the scenario's where the scenario puts it; team e's draws from
+    its own generator, after the scenario's (which draws as without the rules)."""
+    pois = [{"value": 1.0}, {"value": 2.0, "spawn": "fixed", "spawn_positions": [[3.0, -4.0]]},
+            {"value": 3.0, "spawn": "box", "spawn_box": [5.0, 6.0, -2.0, 0.0]},
+            {"value": 4.0, "spawn": "circle", "spawn_circle": [-7.0, 1.0, 2.5]}]  # fmt: skip
+    ruled = DomainConfig(pois=pois, n_req=1)
+    plain = DomainConfig(poi_values=(1.0, 2.0, 3.0, 4.0), n_req=1)
+    worlds = [RoverWorld(ruled, 40), RoverWorld(plain, 40)]
+    for world in worlds:
+        world.reset([np.random.default_rng([9, e]) for e in range(40)])
+    xy, ring = worlds[0].poi_positions, worlds[1].poi_positions
+    np.testing.assert_array_equal(xy[:, 0], ring[:, 0])  # the scenario's, unchanged
+    np.testing.assert_array_equal(worlds[0].rover_positions, worlds[1].rover_positions)
+    assert (xy[:, 1] == [3.0, -4.0]).all()
+    assert (
+        (xy[:, 2, 0] >= 5) & (xy[:, 2, 0] <= 6) & (xy[:, 2, 1] >= -2) & (xy[:, 2, 1] <= 0)
+    ).all()
+    np.testing.assert_allclose(np.hypot(xy[:, 3, 0] + 7.0, xy[:, 3, 1] - 1.0), 2.5)
+    assert np.ptp(xy[:, 2], axis=0).min() > 0.5 and np.ptp(xy[:, 3], axis=0).min() > 2.0
+    alone = RoverWorld(ruled, 1)
+    alone.reset([np.random.default_rng([9, 17])])
+    np.testing.assert_array_equal(alone.poi_positions[0], xy[17])
+    text = DomainConfig(pois=[{"value": 1.0}], n_req=1).to_toml()
+    assert "\nspawn = " not in text and "spawn_box" not in text  # as before the rules existed
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ({"spawn": "disc"}, "pois[0].spawn: "),
+        ({"spawn": "fixed"}, "pois[0].spawn_positions: need one [x, y] per POI (1)"),
+        ({"spawn": "box", "spawn_box": [1.0, 0.0, 0.0, 1.0]}, "pois[0].spawn_box: need"),
+        ({"spawn": "circle", "spawn_circle": [0.0, 0.0]}, "pois[0].spawn_circle: need"),
+    ],
+)
+def test_bad_poi_spawns_are_one_line_errors(table, message):
+    with pytest.raises(ConfigError) as error:
+        DomainConfig(pois=[{"value": 1.0, **table}], n_req=1)
+    assert str(error.value).startswith(message) and "\n" not in str(error.value)

@@ -68,6 +68,25 @@ RESERVED = ("done", "terminated", "truncated", "next", "reward", "action", "obse
 """Names a class may not take: the TorchRL env's keys beside its groups."""
 
 
+def check_spawn(table, count: int, rules: tuple[str, ...], what: str = "agent") -> None:
+    """ConfigError unless the spawn fields of ``table`` (an ``[[agents]]`` or ``[[pois]]``
+    table: ``spawn`` one of ``rules``, ``spawn_positions``, ``spawn_box``,
+    ``spawn_circle``) fit a rule for ``count`` of ``what``
+    (:func:`physrover.domain.agents.classes.spawn_points` draws them)."""
+    check_choice(table.spawn, rules, "spawn")
+    if table.spawn == "fixed":
+        ok = len(table.spawn_positions) == count and all(
+            len(p) == 2 for p in table.spawn_positions)  # fmt: skip
+        check(ok, "spawn_positions", f"need one [x, y] per {what} ({count}), got "
+              f"{[list(p) for p in table.spawn_positions]}")  # fmt: skip
+    b = table.spawn_box
+    ok = table.spawn != "box" or (len(b) == 4 and b[0] < b[1] and b[2] < b[3])
+    check(ok, "spawn_box", f"need [x_min, x_max, y_min, y_max] with min < max, got {list(b)}")
+    c = table.spawn_circle
+    ok = table.spawn != "circle" or (len(c) == 3 and c[2] > 0)
+    check(ok, "spawn_circle", f"need [cx, cy, r] with r > 0, got {list(c)}")
+
+
 @dataclasses.dataclass(frozen=True)
 class AgentClass(ConfigBase):
     """One ``[[agents]]`` table (module docstring)."""
@@ -137,18 +156,7 @@ class AgentClass(ConfigBase):
         b = self.bounds
         ok = not b or (len(b) == 4 and b[0] < b[1] and b[2] < b[3])
         check(ok, "bounds", f"need [x_min, x_max, y_min, y_max] with min < max, got {list(b)}")
-        check_choice(self.spawn, SPAWNS, "spawn")
-        if self.spawn == "fixed":
-            ok = len(self.spawn_positions) == self.count and all(
-                len(p) == 2 for p in self.spawn_positions)  # fmt: skip
-            check(ok, "spawn_positions", f"need one [x, y] per agent ({self.count}), got "
-                  f"{[list(p) for p in self.spawn_positions]}")  # fmt: skip
-        b = self.spawn_box
-        ok = self.spawn != "box" or (len(b) == 4 and b[0] < b[1] and b[2] < b[3])
-        check(ok, "spawn_box", f"need [x_min, x_max, y_min, y_max] with min < max, got {list(b)}")
-        c = self.spawn_circle
-        ok = self.spawn != "circle" or (len(c) == 3 and c[2] > 0)
-        check(ok, "spawn_circle", f"need [cx, cy, r] with r > 0, got {list(c)}")
+        check_spawn(self, self.count, SPAWNS)
 
     def table(self) -> dict[str, Any]:
         """The TOML table (the sensor as a sub-table; no sensor: the domain's)."""
@@ -225,4 +233,5 @@ def agents_table(classes: tuple[AgentClass, ...]) -> list[dict]:
     return [agent.table() for agent in classes]
 
 
-__all__ = ["ACTIONS", "SPAWNS", "AgentClass", "agents_table", "check_agents", "coerce_agents"]
+__all__ = ["ACTIONS", "SPAWNS", "AgentClass", "agents_table", "check_agents", "check_spawn",
+           "coerce_agents"]  # fmt: skip

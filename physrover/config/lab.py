@@ -38,7 +38,9 @@ The conventions, each the lab's code as it runs (``src/influence/custom_env.py``
   senses by SmartLidar and the POI is hidden: elsewhere the lab's flag does nothing); fixed
   positions are an ``explicit`` scenario, positions on one ``random_circle`` a ``ring-random`` one
   around the circle's centre, which is then physrover's origin (every agent position, box
-  and bound moves with it: distances, bearings and moves do not change).
+  and bound moves with it: distances, bearings and moves do not change); POIs that spawn
+  by rules of their own (random boxes or circles of their own, or mixed with fixed ones)
+  each take theirs as ``[[pois]] spawn``, drawn once per generation.
 
 The differences physrover keeps on purpose (its credits' pages list them: AllOrNothing's
 agent 0) are physrover's rules here too; ``feedback = "ID-step-all-or-nothing-lab"`` is the
@@ -269,10 +271,14 @@ def _pois(lab: dict, classes: list[dict]) -> tuple[list[dict[str, Any]], list[tu
     return tables, positions
 
 
-def _scenario(spawns: list[tuple[str, Any]]) -> tuple[dict[str, Any], tuple[float, float]]:
+def _scenario(
+    spawns: list[tuple[str, Any]], pois: list[dict]
+) -> tuple[dict[str, Any], tuple[float, float]]:
     """The ``[scenario]`` table of the POIs' lab spawns and the lab point that is
-    physrover's origin: fixed POIs as they are (origin (0, 0)), or POIs on one shared circle
-    as ``ring-random`` around its centre, one draw per generation (the lab's harness)."""
+    physrover's origin: fixed POIs as they are (origin (0, 0)), POIs on one shared circle
+    as ``ring-random`` around its centre, or else each POI by its own rule (``[[pois]]
+    spawn``, written into ``pois``; origin (0, 0)), random ones drawn once per generation
+    (the lab's harness)."""
     rules = {rule for rule, _ in spawns}
     if rules == {"fixed"}:
         return {"kind": "explicit", "poi_positions": [v for _, v in spawns]}, (0.0, 0.0)
@@ -281,9 +287,19 @@ def _scenario(spawns: list[tuple[str, Any]]) -> tuple[dict[str, Any], tuple[floa
         cx, cy, r = circles.pop()
         return {"kind": "ring-random", "poi_ring_radius": r, "ring_thickness": 0.0,
                 "redraw": "generation"}, (cx, cy)  # fmt: skip
-    raise ConfigError("env.pois[].position", "physrover places POIs by one scenario (all "
-                      "fixed, or all on one random_circle); these spawn by "
-                      f"{' and '.join(sorted(rules))} each")  # fmt: skip
+    placed = []  # where the explicit scenario puts each POI before its own rule moves it
+    for table, (rule, value) in zip(pois, spawns, strict=True):
+        table["spawn"] = rule
+        if rule == "fixed":
+            table["spawn_positions"] = [value]
+            placed.append(value)
+        elif rule == "box":
+            table["spawn_box"] = value
+            placed.append([(value[0] + value[1]) / 2, (value[2] + value[3]) / 2])
+        else:
+            table["spawn_circle"] = value
+            placed.append([value[0] + value[2], value[1]])
+    return {"kind": "explicit", "poi_positions": placed, "redraw": "generation"}, (0.0, 0.0)
 
 
 def _shift(table: dict[str, Any], origin: tuple[float, float]) -> dict[str, Any]:
@@ -314,7 +330,7 @@ def lab_domain(lab: dict, steps: int | None = None) -> DomainConfig:
         del table["sensor"]["blind"]
     if not pois:
         raise ConfigError("env.pois", "no POI: physrover needs at least one")
-    scenario, origin = _scenario(spawns)
+    scenario, origin = _scenario(spawns, pois)
     return DomainConfig.from_tables({
         "domain": {"steps": int(steps), "d_min": LAB_D_MIN},
         "scenario": scenario,

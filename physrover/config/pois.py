@@ -46,12 +46,15 @@ import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
+from physrover.config.agents import check_spawn
 from physrover.config.base import ConfigBase, check, check_choice, coerce_tables, did_you_mean
 
 SCORE_AT = ("any", "final")
 CAPTURE_BY = ("radius", "sight", "radius-or-sight")
 VALUE_BY = ("capture", "distance")
 DISAPPEAR = ("never", "captured")
+SPAWNS = ("scenario", "fixed", "box", "circle")
+"""Where a POI starts: the scenario's place for it, or a rule of its own (as an agent's)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,6 +89,18 @@ class PoiRule(ConfigBase):
     require: Any = dataclasses.field(default_factory=dict)
     """``{class = count}``: a typed coupling, at least ``count`` agents of each named class
     at one step (instead of ``n_req``); only those classes' agents count for it."""
+    spawn: str = "scenario"
+    """Where it starts each episode: "scenario" (where the scenario puts it), "fixed"
+    (``spawn_positions``), "box" (uniform in ``spawn_box``) or "circle" (on
+    ``spawn_circle``): the lab's per-POI ``position.spawn_rule``, drawn after the
+    scenario and the agents' spawns."""
+    spawn_positions: tuple[tuple[float, ...], ...] = ()
+    """"fixed": ``[[x, y]]``."""
+    spawn_box: tuple[float, ...] = ()
+    """"box": ``[x_min, x_max, y_min, y_max]`` (the lab's random_uniform)."""
+    spawn_circle: tuple[float, ...] = ()
+    """"circle": ``[cx, cy, r]``: a point *on* the circle, its angle uniform (the lab's
+    random_circle)."""
 
     def __post_init__(self) -> None:
         self._coerce_fields()
@@ -113,6 +128,7 @@ class PoiRule(ConfigBase):
                   f"require.{name}", f"must be an integer >= 1, got {n!r}")  # fmt: skip
         object.__setattr__(self, "require", dict(require))
         check(not (require and self.n_req), "require", "give n_req or require, not both")
+        check_spawn(self, 1, SPAWNS, "POI")
 
     @property
     def scored_by_rule(self) -> bool:
@@ -183,6 +199,9 @@ def pois_table(pois: tuple[PoiRule, ...]) -> list[dict]:
     for table in tables:  # TOML has no empty inline table to write
         if not table["require"]:
             del table["require"]
+        if table["spawn"] == "scenario":  # written only where given, as before they existed
+            for name in ("spawn", "spawn_positions", "spawn_box", "spawn_circle"):
+                del table[name]
     return tables
 
 
@@ -197,6 +216,7 @@ __all__ = [
     "CAPTURE_BY",
     "DISAPPEAR",
     "SCORE_AT",
+    "SPAWNS",
     "VALUE_BY",
     "PoiRule",
     "capture_radii",

@@ -11,14 +11,14 @@ from typing import Any
 
 import numpy as np
 
-from physrover.domain.agents.classes import spawn
+from physrover.domain.agents.classes import spawn, spawn_pois
 from physrover.domain.agents.failures import draw_failures
 from physrover.domain.scenarios import StartState
 
 
 class StartDraws:
     """A world's start states: the scenario's draw (team e's from ``rngs[e]`` alone) and
-    the classes' spawn rules, then shared as the scenario's ``redraw`` mode says
+    the classes' and the POIs' spawn rules, then shared as the scenario's ``redraw`` mode says
     (:mod:`physrover.domain.scenarios`); and the failing agents' steps, shared the same way.
     ``fresh_teams``: under ``redraw = "generation"``, the last this many teams draw their
     own (the CCEA's evaluation episodes), the others share team 0's."""
@@ -38,18 +38,13 @@ class StartDraws:
         start = scenario.draw(rngs, n_rovers, values)
         if not isinstance(start, StartState):
             raise TypeError(f"{type(scenario).__name__}.draw must return a StartState")
-        if config.agents:  # the classes' spawn rules, drawn after the scenario
-            start = start._replace(rover_positions=np.array(start.rover_positions, float))
-            spawn(start.rover_positions, config, rngs)
+        start = self._spawned(start, rngs)
         if scenario.redraw == "episode":
             return start
         if scenario.redraw == "never":
             if self._fixed is None:
                 rng = np.random.default_rng(scenario.layout_seed)
-                fixed = scenario.draw([rng], n_rovers, values)
-                if config.agents:
-                    fixed = fixed._replace(rover_positions=np.array(fixed.rover_positions, float))
-                    spawn(fixed.rover_positions, config, [rng])
+                fixed = self._spawned(scenario.draw([rng], n_rovers, values), [rng])
                 self._fixed = StartState(*(a[0] for a in fixed))
             shared, first = self.n_teams, self._fixed
         else:  # "generation": team 0's draw for every team but the fresh ones
@@ -59,6 +54,18 @@ class StartDraws:
         for arr, row in zip(out, first, strict=True):
             arr[:shared] = row
         return StartState(*out)
+
+    def _spawned(self, start: StartState, rngs) -> StartState:
+        """``start`` with the classes' spawn rules and then the POIs' applied, drawn after
+        the scenario's (:func:`~physrover.domain.agents.classes.spawn`, ``spawn_pois``)."""
+        config = self.config
+        if config.agents:
+            start = start._replace(rover_positions=np.array(start.rover_positions, float))
+            spawn(start.rover_positions, config, rngs)
+        if any(poi.spawn != "scenario" for poi in config.pois):
+            start = start._replace(poi_positions=np.array(start.poi_positions, float))
+            spawn_pois(start.poi_positions, config, rngs)
+        return start
 
     def failures(self, rngs, fresh_teams: int) -> np.ndarray:
         """(len(rngs), R) int64: the failure steps of this reset

@@ -77,26 +77,50 @@ def agent_names(config) -> list[str]:
     return [f"{c.name}_{j}" for c in config.agents for j in range(c.count)]
 
 
+def spawn_points(table, n: int, rng: np.random.Generator) -> np.ndarray | None:
+    """(n, 2) start positions by the spawn rule of ``table`` (an ``[[agents]]`` or
+    ``[[pois]]`` table: :func:`physrover.config.agents.check_spawn`), drawn from ``rng``
+    ("box": the x then the y coordinates, uniform; "circle": the angles, uniform), or None
+    where the scenario places them."""
+    if table.spawn == "fixed":
+        return np.asarray(table.spawn_positions, dtype=float)
+    points = np.empty((n, 2))
+    if table.spawn == "box":
+        x0, x1, y0, y1 = table.spawn_box
+        points[:, 0] = rng.uniform(x0, x1, n)
+        points[:, 1] = rng.uniform(y0, y1, n)
+    elif table.spawn == "circle":
+        cx, cy, r = table.spawn_circle
+        angle = rng.uniform(0.0, 2.0 * math.pi, n)
+        points[:, 0] = cx + r * np.cos(angle)
+        points[:, 1] = cy + r * np.sin(angle)
+    else:
+        return None
+    return points
+
+
 def spawn(positions: np.ndarray, config, rngs) -> None:
     """Move the start ``positions`` (E, R, 2) of the classes with a spawn rule
     (``[[agents]] spawn``), team e's from ``rngs[e]``, drawn after the scenario's (so the
     scenario's draws, and a "disc" class's start, are what they are without rules)."""
     for rows, agent in zip(class_rows(config), config.agents, strict=False):
-        n = rows.stop - rows.start
         for e, rng in enumerate(rngs):
-            if agent.spawn == "fixed":
-                positions[e, rows] = np.asarray(agent.spawn_positions, dtype=float)
-            elif agent.spawn == "box":
-                x0, x1, y0, y1 = agent.spawn_box
-                positions[e, rows, 0] = rng.uniform(x0, x1, n)
-                positions[e, rows, 1] = rng.uniform(y0, y1, n)
-            elif agent.spawn == "circle":
-                cx, cy, r = agent.spawn_circle
-                angle = rng.uniform(0.0, 2.0 * math.pi, n)
-                positions[e, rows, 0] = cx + r * np.cos(angle)
-                positions[e, rows, 1] = cy + r * np.sin(angle)
+            points = spawn_points(agent, rows.stop - rows.start, rng)
+            if points is not None:
+                positions[e, rows] = points
+
+
+def spawn_pois(poi_positions: np.ndarray, config, rngs) -> None:
+    """Move the start ``poi_positions`` (E, K, 2) of the POIs with a spawn rule
+    (``[[pois]] spawn``), POI by POI, team e's from ``rngs[e]``, drawn after the scenario's
+    and the classes' (:func:`spawn`)."""
+    for k, poi in enumerate(config.pois):
+        for e, rng in enumerate(rngs):
+            points = spawn_points(poi, 1, rng)
+            if points is not None:
+                poi_positions[e, k] = points[0]
 
 
 __all__ = ["agent_classes", "agent_names", "class_names", "class_rows", "class_sensor",
            "counted_agents", "gate_radius", "per_agent", "pick_count", "sensor_radius",
-           "spawn"]  # fmt: skip
+           "spawn", "spawn_points", "spawn_pois"]  # fmt: skip
