@@ -68,6 +68,29 @@ def _with(path: str, value) -> dict:
     return lab
 
 
+def test_poi_subtypes_are_sensed_by_the_uavs_that_observe_them():
+    """The lab's SmartLidar: a hidden POI with a subtype is sensed only by the UAVs whose
+    observable_subtypes list it; a rover POI's subtype is never read. Two UAVs observing
+    different subtypes become two classes, each POI visible to its own."""
+    lab = copy.deepcopy(_example())
+    uav = lab["env"]["agents"]["uavs"][0]
+    lab["env"]["agents"]["uavs"] = [dict(uav, observable_subtypes=["red"]),
+                                    dict(uav, observable_subtypes=["blue", "green"])]  # fmt: skip
+    hidden = lab["env"]["pois"]["hidden_pois"][0]
+    lab["env"]["pois"]["hidden_pois"] = [dict(hidden, subtype="red"),
+                                         dict(hidden, subtype="green"), dict(hidden)]  # fmt: skip
+    lab["env"]["pois"]["rover_pois"] = [dict(hidden, subtype="red")]
+    domain = lab_domain(lab)
+    assert [c.name for c in domain.agents] == ["rover", "uav_1", "uav_2"]
+    seen = [set(p.visible_to) for p in domain.pois]
+    # the rover POI by both UAVs, its subtype unread (the rover's RoverLidar senses no
+    # POI), then the hidden ones: red by uav_1, green by uav_2, no subtype by both UAVs
+    assert seen == [{"uav_1", "uav_2"}, {"uav_1"}, {"uav_2"}, {"uav_1", "uav_2"}]
+    lab["env"]["pois"]["hidden_pois"][0]["subtype"] = "violet"
+    with pytest.raises(ConfigError, match=r"hidden_pois\[0\]\.subtype: no UAV observes 'violet'"):
+        lab_domain(lab)
+
+
 def test_pois_that_spawn_by_rules_of_their_own_take_them_as_pois_spawn():
     """The lab's per-POI spawn rules (a box of its own, here, where the example's POI is on
     a circle): the POI's table takes the rule, the scenario places it explicitly, and every

@@ -35,7 +35,10 @@ The conventions, each the lab's code as it runs (``src/influence/custom_env.py``
   ``n_req``, ``constraint`` final (the default) or sequential (``score_at`` "final" or
   "any"), captured within ``capture_radius`` or by sight (``capture_by``), gone from
   sight once captured under ``disappear_bool`` (``disappear = "captured"``, where a rover
-  senses by SmartLidar and the POI is hidden: elsewhere the lab's flag does nothing); fixed
+  senses by SmartLidar and the POI is hidden: elsewhere the lab's flag does nothing); a
+  hidden POI's ``subtype`` sensed only by the UAVs that list it in their
+  ``observable_subtypes`` (its ``visible_to``; a rover POI's subtype is never read, as in
+  the lab's SmartLidar); fixed
   positions are an ``explicit`` scenario, positions on one ``random_circle`` a ``ring-random`` one
   around the circle's centre, which is then physrover's origin (every agent position, box
   and bound moves with it: distances, bearings and moves do not change); POIs that spawn
@@ -124,13 +127,11 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
     kind = sensor.get("type", "SmartLidar")
     if kind == "UavDistanceLidar":
         radius = float(get(agent, "observation_radius", where))
-        return {"kind": "distances", "classes": ["uav"], "radius": radius, "blind": True}
+        return {"kind": "distances", "classes": ["uav"], "radius": radius, "blind": True,
+                "observes": []}  # fmt: skip
     if kind not in ("SmartLidar", "RoverLidar"):
         raise ConfigError(f"{where}.sensor.type", "SmartLidar, RoverLidar or UavDistanceLidar,"
                           f" got {kind!r}")  # fmt: skip
-    for key in ("observable_subtypes",):
-        if agent.get(key):
-            raise ConfigError(f"{where}.{key}", "POI subtypes are not in physrover yet")
     resolution = get(agent, "resolution", where)
     if 360 % resolution:
         raise ConfigError(f"{where}.resolution", f"must divide 360, got {resolution}")
@@ -144,7 +145,8 @@ def _sensor(agent: dict, where: str) -> dict[str, Any]:
             "bearing": "world", "radius": float(get(agent, "observation_radius", where)),
             "compose": LAB_ACCUM[accum], "measure": LAB_MEASURES[measure],
             "empty": float(sensor.get("default_value", -1.0)),
-            "blind": kind == "RoverLidar"}  # fmt: skip
+            "blind": kind == "RoverLidar",
+            "observes": list(agent.get("observable_subtypes") or [])}  # fmt: skip
 
 
 def _spawn(position: dict, where: str) -> tuple[str, Any]:
@@ -244,8 +246,7 @@ def _pois(lab: dict, classes: list[dict]) -> tuple[list[dict[str, Any]], list[tu
     for kind in ("rover_pois", "hidden_pois"):
         for i, poi in enumerate(pois.get(kind) or []):
             where = f"env.pois.{kind}[{i}]"
-            if poi.get("subtype"):
-                raise ConfigError(f"{where}.subtype", "POI subtypes are not in physrover yet")
+            subtype = (poi.get("subtype") or "") if kind == "hidden_pois" else ""
             live = smart and kind == "hidden_pois"
             constraint = poi.get("constraint", "final")
             if constraint not in LAB_CONSTRAINTS:
@@ -262,8 +263,14 @@ def _pois(lab: dict, classes: list[dict]) -> tuple[list[dict[str, Any]], list[tu
                 table["capture_by"] = "sight"
             else:
                 table.update(capture_by="radius-or-sight", capture_radius=radius)
+            # a hidden POI with a subtype: only the UAVs that list it in their
+            # observable_subtypes sense it (SmartLidar::scan; a rover POI's is never read)
             seen = [c["name"] for c in classes if not c["sensor"]["blind"]
-                    and (kind == "rover_pois" or not c["captures"])]  # fmt: skip
+                    and (kind == "rover_pois" or not c["captures"])
+                    and (not subtype or subtype in c["sensor"]["observes"])]  # fmt: skip
+            if subtype and not seen:
+                raise ConfigError(f"{where}.subtype", f"no UAV observes {subtype!r}: "
+                                  "physrover cannot hide a POI from every class")  # fmt: skip
             if seen and len(seen) < len(classes):  # nobody senses it: left to all (noted)
                 table["visible_to"] = seen
             tables.append(table)
@@ -327,7 +334,7 @@ def lab_domain(lab: dict, steps: int | None = None) -> DomainConfig:
     agents = _classes(lab)
     pois, spawns = _pois(lab, agents)
     for table in agents:
-        del table["sensor"]["blind"]
+        del table["sensor"]["blind"], table["sensor"]["observes"]
     if not pois:
         raise ConfigError("env.pois", "no POI: physrover needs at least one")
     scenario, origin = _scenario(spawns, pois)
