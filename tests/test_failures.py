@@ -256,7 +256,7 @@ def test_influence_credit_leaves_out_a_failed_uav():
         ({"given": [[1, 13]]}, "given: step 13 is past the episode's 12 steps"),
         ({"given": [[1, 2], [1, 3]]}, "given: an agent is named twice: [1, 1]"),
         ({"given": [1, 2]}, "given: each entry must be [agent, step], got 1"),
-        ({"n_failing": 7}, "n_failing: must be at most the 6 agents given leaves, got 7"),
+        ({"n_failing": 7}, "n_failing: must be at most 6 (the agents given does not name), got 7"),
         ({"between": [5, 2]}, "between: must be [first, last], 0 <= first <= last, got [5, 2]"),
         ({"between": [1, 20]}, "between: last step 20 is past the episode's 12 steps"),
         ({"every": 3}, "every: unknown FailureConfig field"),

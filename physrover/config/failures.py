@@ -72,7 +72,8 @@ class FailureConfig(ConfigBase):
                   f"last step {self.between[1]} is past the episode's {steps} steps")  # fmt: skip
         free = n_rovers - len(self.given)
         check(self.n_failing <= free, "n_failing",
-              f"must be at most the {free} agents given leaves, got {self.n_failing}")  # fmt: skip
+              f"must be at most {free} (the agents given does not name), got "
+              f"{self.n_failing}")  # fmt: skip
 
 
 __all__ = ["FailureConfig"]
