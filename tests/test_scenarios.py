@@ -251,3 +251,12 @@ def test_spawn_density_grows_the_disc_with_the_team_and_a_thousand_rovers_start_
         config.replace(walls=True, wall_half_size=30.0)
     with pytest.raises(ConfigError, match="spawn_density"):
         DomainConfig(scenario={"kind": "ring", "spawn_density": -1.0})
+
+
+def test_a_spawn_density_too_small_for_a_finite_disc_is_one_line_error():
+    """A density so small that the disc's radius overflows (found by the property test:
+    2.2e-313 spawned every rover at infinity) is refused, naming the floor."""
+    with pytest.raises(ConfigError, match=r"^spawn_density: must be 0 \(off\) or >= 1e-06"):
+        DomainConfig(scenario={"kind": "ring", "spawn_density": 2.2e-313})
+    assert DomainConfig(scenario={"kind": "ring", "spawn_density": 1e-6}).scenario.disc_radius(
+        15) < 3000  # fmt: skip

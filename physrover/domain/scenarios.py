@@ -157,6 +157,12 @@ def per_team(array: np.ndarray, n_teams: int) -> np.ndarray:
     return np.array(np.broadcast_to(array, (n_teams, *np.shape(array))), dtype=np.float64)
 
 
+MIN_SPAWN_DENSITY = 1e-6
+"""The smallest ``spawn_density`` other than 0 (off): a team of R then spawns within
+``sqrt(R / (pi 1e-6))``, ~564 sqrt(R) world units; smaller would overflow to an infinite
+disc."""
+
+
 @dataclasses.dataclass(frozen=True)
 class SpawnDisc(Scenario):
     """A scenario whose rovers start in the spawn disc (:func:`spawn_in_disc`); subclasses
@@ -173,8 +179,10 @@ class SpawnDisc(Scenario):
 
     def validate(self) -> None:
         self.check_positive("spawn_radius")
-        check(self.spawn_density >= 0 and math.isfinite(self.spawn_density), "spawn_density",
-              f"must be >= 0 (0: off), got {self.spawn_density}")  # fmt: skip
+        density = self.spawn_density
+        check(density == 0 or (MIN_SPAWN_DENSITY <= density and math.isfinite(density)),
+              "spawn_density", f"must be 0 (off) or >= {MIN_SPAWN_DENSITY} (the spawn disc "
+              f"grows as sqrt(R / (pi spawn_density))), got {density}")  # fmt: skip
 
     def disc_radius(self, n_rovers: int) -> float:
         """The spawn disc's radius for a team of ``n_rovers`` (see ``spawn_density``)."""
