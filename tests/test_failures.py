@@ -268,6 +268,37 @@ def test_bad_failures_are_one_line_errors(table, message):
     assert str(info.value).startswith(message) and "\n" not in str(info.value)
 
 
+def test_a_failed_agent_that_picks_or_follows_stays_put_under_idealised_motion():
+    """Its move is its target's, whatever its command; failed, its gate is closed."""
+    agents = [{"name": "uav", "count": 1, "captures": False, "max_speed": 2.0},
+              {"name": "picker", "count": 2, "action": "pick", "picks": ["uav"]},
+              {"name": "follower", "count": 2, "action": "follow", "picks": ["uav"],
+               "sensor": {"kind": "lidar", "radius": 100.0}}]  # fmt: skip
+    config = DomainConfig(n_req=1, steps=10, agents=agents,
+                          failures={"given": [[1, 2], [3, 4]]})  # fmt: skip
+    world = RoverWorld(config, 2)
+    world.reset([np.random.default_rng(e) for e in range(2)])
+    for _ in range(config.steps):
+        world.step(np.tile([[1.0, 0.5], [-1.0, 0.0], [-1.0, 0.0], [0.0, 0.0], [0.0, 0.0]],
+                           (2, 1, 1)))  # fmt: skip
+    path = world.position_history
+    assert (path[2:, :, 1] == path[1:2, :, 1]).all() and (path[4:, :, 3] == path[3:4, :, 3]).all()
+    assert (path[1] != path[0])[:, [1, 3]].any()  # they moved while alive
+    assert (path[-1] != path[4])[:, [2, 4]].any()  # and their live teammates still do
+
+
+def test_failures_of_agents_that_pick_or_follow_under_physics_are_refused():
+    """Under physics a picking or following agent's move is its target's, whatever its
+    command: a failed one would keep moving, so the combination is refused in one line
+    (the idealised motion stops it: its gate is closed)."""
+    agents = [{"name": "uav", "count": 1, "captures": False},
+              {"name": "rover", "count": 2, "action": "pick", "picks": ["uav"]}]  # fmt: skip
+    base = DomainConfig(n_req=1, agents=agents)
+    base.replace(failures={"n_failing": 1})  # idealised: fine
+    with pytest.raises(ConfigError, match=r"^failures: agents that pick or follow \(rover\)"):
+        base.replace(motion="physics", failures={"n_failing": 1})
+
+
 def test_the_table_round_trips_and_is_absent_when_off():
     config = _config(failures={"given": [[2, 4]], "n_failing": 1, "between": [3, 9]})
     text = config.to_toml()

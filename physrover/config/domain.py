@@ -165,6 +165,11 @@ class DomainConfig(ConfigBase):
         )
         physics.check_rovers(self.n_rovers)
         self.failures.check_domain(self.n_rovers, self.steps)
+        steered = [a.name for a in self.agents if a.action in ("pick", "follow")]
+        check(not (self.failures.on and steered and self.motion != "ideal"), "failures",
+              f"agents that pick or follow ({', '.join(steered)}) would keep moving after "
+              f"they fail under {self.motion!r} motion; failures take them under the "
+              "idealised motion only")  # fmt: skip
         if physics.walls:
             radius = float(physics.per_rover("rover_radius", self.n_rovers).max())
             inner = extent_of(self.scenario, self.n_rovers, spawn=True) + 2 * radius
