@@ -205,15 +205,16 @@ def test_each_class_observes_with_its_own_sensor_zero_padded():
 
 
 def test_one_class_of_the_paper_rovers_is_the_paper_team():
-    """[[agents]] with one class of 15 default rovers: the classes' path (roles, the
-    classes' sensing table with the density sensor as a lidar) equals the paper's step bit
-    for bit."""
+    """[[agents]] with one class of 15 default rovers: the classes' path (roles; the
+    paper's sensor, which a team whose classes all sense with it takes for the whole team:
+    the class table's equality with it is the test below) equals the paper's step bit for
+    bit."""
     paper = DomainConfig(n_req=2)
     mirror = DomainConfig.from_toml('[domain]\nn_req = 2\n[[agents]]\nname = "rover"\n'
                                     "count = 15\n")  # fmt: skip
     worlds = [RoverWorld(c, 3) for c in (paper, mirror)]
     assert worlds[0].plan.step.classes is None and worlds[0].plan.step.motion.roles is None
-    assert worlds[1].plan.step.classes is not None and worlds[1].plan.step.motion.roles
+    assert worlds[1].plan.step.density is not None and worlds[1].plan.step.motion.roles
     assert worlds[0].compiled and worlds[1].compiled
     actions = np.random.default_rng(3).uniform(-1.2, 1.2, (paper.steps, 3, 15, 2))
     play_alike(worlds, actions)
@@ -378,3 +379,28 @@ def test_a_class_that_never_captures_is_a_mask_equal_to_the_rules_path():
         np.testing.assert_array_equal(a.state.in_range, b.state.in_range)
         np.testing.assert_array_equal(a.G, b.G)
         np.testing.assert_array_equal(a.D, b.D)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_classes_that_all_sense_with_the_papers_sensor_take_its_kernel_bit_for_bit(seed):
+    """A team of classes (one that does not capture) whose every class senses with the
+    paper's density sensor is sensed by its vectorised kernel for the whole team; the class
+    table (the lidar as the density sensor) reads the same, bit for bit."""
+    import dataclasses
+
+    from physrover.domain.sensing.classes import ClassSensing
+
+    agents = [{"name": "rover", "count": 10}, {"name": "uav", "count": 5, "captures": False}]
+    config = DomainConfig(n_req=1, agents=agents)
+    worlds = [RoverWorld(config, 5) for _ in range(2)]
+    assert worlds[0].plan.step.density is not None and worlds[0].plan.step.classes is None
+    table = worlds[1].plan.step._replace(density=None, classes=ClassSensing.build(config))
+    worlds[1].plan = dataclasses.replace(worlds[1].plan, step=table)
+    rng = np.random.default_rng(seed)
+    commands = rng.uniform(-1.5, 1.5, (config.steps, 5, 15, 2))
+    for world in worlds:
+        world.reset([np.random.default_rng([seed, e]) for e in range(5)])
+        for t in range(config.steps):
+            world.step(commands[t])
+    np.testing.assert_array_equal(worlds[0].observations, worlds[1].observations)
+    np.testing.assert_array_equal(worlds[0].D, worlds[1].D)

@@ -14,8 +14,9 @@ Parts and their kernels:
   step (:func:`~physrover.domain.motion.ideal.move_team`, with the classes'
   :class:`~physrover.domain.agents.roles.Roles`); None when a motion model is stepped
   before the compiled step (the physical model, compiled or with pymunk, or a user's);
-- ``density``: the paper's sensor for the whole team,
-  :func:`~physrover.domain.sensing.density.sense_team`'s ``(d_min^2, sectors, radius^2)``;
+- ``density``: the paper's sensor for the whole team (also for a team of classes that all
+  sense with it), :func:`~physrover.domain.sensing.density.sense_team`'s ``(d_min^2,
+  sectors, radius^2)``;
 - ``classes``: otherwise, what each class senses
   (:class:`~physrover.domain.sensing.classes.ClassSensing`);
 - ``rules``: the POIs' rules (:class:`~physrover.domain.scoring.rules.PoiRules`), None
@@ -128,7 +129,11 @@ def build_plan(config, dynamics, n_teams: int) -> Plan:
     by_class = bool(config.agents) or any(p.hides for p in config.pois)
     density = classes = None
     python_sensors = []
-    if not by_class and type(sensor) is Density:
+    sensors = [class_sensor(config, c) for c in range(max(len(config.agents), 1))]
+    if type(sensor) is Density and all(s == sensor for s in sensors) and not any(
+            p.hides for p in config.pois):  # fmt: skip
+        # every class senses with the paper's sensor: its vectorised kernel for the whole
+        # team, the class table's readings bit for bit (tests/test_agent_classes.py)
         density = sensor.kernel_arguments(config.d_min)
     elif by_class or type(sensor) is Lidar:
         classes = ClassSensing.build(config)
