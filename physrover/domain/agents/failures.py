@@ -68,6 +68,11 @@ def alive_at(at: np.ndarray, t) -> np.ndarray:
     return np.asarray(t).reshape(-1, 1) < at
 
 
+def alive_through(at: np.ndarray, n_states: int) -> np.ndarray:
+    """(n_states, E, R) bool: :func:`alive_at` at each of states 0 .. n_states - 1."""
+    return np.arange(n_states)[:, None, None] < at[None]
+
+
 def halt_commands(commands: np.ndarray, record: np.ndarray, at: np.ndarray, t, teams=None):
     """Zero the (E, R, 2) ``commands`` (and their ``record``) of the agents not alive at the
     state ``t`` they move into (an int or (E,) ints), of the ``teams`` mask if given: what
@@ -87,10 +92,9 @@ def alive(failures, e, t, i):
 
 def silence(failures, e, t, obs):
     """Zero the observations ``obs[e]`` (E, R, n_obs) of team e's agents not alive at t."""
-    if failures is not None:
-        for i in range(obs.shape[1]):
-            if t >= failures.at[e, i]:
-                obs[e, i, :] = 0.0
+    for i in range(obs.shape[1]):
+        if not alive(failures, e, t, i):
+            obs[e, i, :] = 0.0
 
 
 @overload(alive, inline="always")
@@ -107,12 +111,12 @@ def _silence_compiled(failures, e, t, obs):
 
     def zero(failures, e, t, obs):
         for i in range(obs.shape[1]):
-            if t >= failures.at[e, i]:
+            if not alive(failures, e, t, i):
                 for j in range(obs.shape[2]):
                     obs[e, i, j] = 0.0
 
     return zero
 
 
-__all__ = ["NEVER", "Failures", "alive", "alive_at", "draw_failures", "halt_commands",
-           "silence"]  # fmt: skip
+__all__ = ["NEVER", "Failures", "alive", "alive_at", "alive_through", "draw_failures",
+           "halt_commands", "silence"]  # fmt: skip

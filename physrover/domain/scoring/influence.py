@@ -56,6 +56,7 @@ import numpy as np
 
 from physrover.core.compiled import jit
 from physrover.domain.agents.classes import counted_agents, per_agent
+from physrover.domain.agents.failures import alive_through
 from physrover.domain.scoring.captures import (
     coupling_met,
     last_scored_step,
@@ -95,9 +96,7 @@ def alive_history(world, n_steps: int) -> np.ndarray | None:
     """(n_steps, E, R) bool: which agents were alive at each of the episode's first
     ``n_steps`` states (:mod:`physrover.domain.agents.failures`); None if none can fail."""
     failures = world.plan.step.failures
-    if failures is None:
-        return None
-    return np.arange(n_steps)[:, None, None] < failures.at[None]
+    return None if failures is None else alive_through(failures.at, n_steps)
 
 
 def removal_sets(phi: np.ndarray, timescale: str, rule: str = "all-or-nothing") -> np.ndarray:
