@@ -1,21 +1,24 @@
-"""Turn the experiment sweeps into the committed results (run from the repository root).
+"""Turn the paper's sweeps into the committed results (run from the repository root).
 
     python experiments/make_results.py [--root runs/sweeps] [--last 50]
 
+This file holds this project's figure choices only: :data:`SWEEPS` says, per sweep, which
+runs, grouped how, go into which figures with which titles, and which columns name its
+cells; the ablation and MARL tables are the two tables of their own. What any sweep needs
+(final scores, the code and CPU columns, the finished check, rows pooled across machines)
+is the package's :mod:`physrover.analysis.results`; newer sweeps go through ``physrover
+results`` alone.
+
 Writes under experiments/results/: learning-curve PNGs with their CSVs (mean eval G and
 95% CI half-width per generation, per group), final-score plots with CSVs, runs.csv (one
-row per run: its config cell, seed, final score, wall time, the code and CPU that trained
-it: :func:`provenance_columns`) and cells.md (the table of
-final mean G +- 95% CI per cell that RESULTS.md quotes). Sweeps missing under ``--root``
-keep their rows of runs.csv and their sections of cells.md, so sweeps can be re-made one
-at a time. ``fig8-9-paper`` and ``physics-long-mean`` (:data:`POOLED`), final-score sweeps
-run in chunks of seeds (``physrover sweep FILE --seeds 0:2``, ``2:4``, ...) on machines that
-do not keep each other's run directories, keep the rows of their finished runs that are not
-among the finished runs on disk, and their final-score figures and tables pool them with
-the runs found (they draw no learning curves): the committed runs.csv is what carries them
-across machines (with ``--last`` 50, the rows' own). Any other sweep
-found on disk is made from what is there alone: chunking it would drop the other chunks.
-"Final score" of a run is its mean eval G over its last ``--last`` generations; the CI is
+row per run: its cell, seed, final score, wall time, code and CPU) and cells.md (final mean
+G +- 95% CI per cell, which RESULTS.md quotes). Sweeps missing under ``--root`` keep their
+rows of runs.csv and their sections of cells.md, so sweeps can be re-made one at a time.
+The ``pooled`` sweeps (fig8-9-paper, physics-long-mean: final scores only, run in chunks of
+seeds on machines that do not keep each other's run directories) keep the committed rows
+of their finished runs not on disk and pool them into their tables and figures (only with
+``--last`` 50, the rows' own); any other sweep found on disk is made from what is there
+alone. "Final score" is a run's mean eval G over its last ``--last`` generations; the CI is
 over seeds (Student t).
 """
 
@@ -30,75 +33,235 @@ from pathlib import Path
 import numpy as np
 
 from physrover.analysis import plots
-from physrover.analysis.curve_data import Table, final_score, scores_table
-from physrover.analysis.results import is_finished as _finished
-from physrover.analysis.results import kept_rows as _kept_finals
-from physrover.analysis.results import provenance_columns
+from physrover.analysis.curve_data import Run, final_score, scores_table
+from physrover.analysis.results import is_finished, kept_rows, provenance_columns
+from physrover.analysis.tables import write_csv
 from physrover.experiment.evaluate import motion_model
 from physrover.experiment.store import find_runs, read_metrics
 
 OUT = Path("experiments/results")
+POOLED_LAST = 50
+"""The ``--last`` of the committed rows' final scores; another ``--last`` pools nothing."""
 
 
-def variant(run: plots.Run, fields: tuple[str, ...]) -> str:
-    """``field=value ...`` of the given fields of a run (booleans lower-case)."""
-    parts = []
-    for f in fields:
-        value = run.fields[f]
-        parts.append(f"{f}={str(value).lower() if isinstance(value, bool) else value}")
-    return " ".join(parts)
+def column(run: Run, field: str):
+    """A run's value of a runs.csv column (``motion``: the motion model's name)."""
+    if field == "motion":
+        return motion_model(run.fields["motion"], run.fields["collisions"])
+    return run.fields[field]
 
 
-def label(run: plots.Run, fields: tuple[str, ...]) -> str:
-    return " ".join([run.fields["method"], *([variant(run, fields)] if fields else [])])
+class _Values(dict):
+    """Values a label template reads: a run's columns, or a runs.csv row's (booleans
+    lower-case, as labels write them)."""
+
+    def __init__(self, get):
+        super().__init__()
+        self.get_value = get
+
+    def __missing__(self, field: str):
+        value = self.get_value(field)
+        return str(value).lower() if isinstance(value, bool) else value
 
 
-def regroup(runs: list[plots.Run], fields: tuple[str, ...]) -> list[plots.Run]:
+def label(template: str, run: Run | dict) -> str:
+    """``template`` filled with a run's (or a row's) values."""
+    get = run.get if isinstance(run, dict) else lambda f: column(run, f)
+    return template.format_map(_Values(get))
+
+
+def fields_label(fields: tuple[str, ...]) -> str:
+    """The template ``field={field} ...``."""
+    return " ".join(f"{f}={{{f}}}" for f in fields)
+
+
+@dataclasses.dataclass(frozen=True)
+class Figures:
+    """One sweep's outputs. Templates read a run's columns (:func:`column`); file names and
+    titles also ``{n}`` (the n_req: one figure per n_req), ``{gens}`` (the sweep's most
+    generations), ``{smooth}`` and ``{last}``."""
+
+    name: str
+    cells: tuple[str, ...]
+    """cells.md's columns (runs.csv's), one cell per distinct value."""
+    group: str = "{method}"
+    """Figures' group label."""
+    curves: str | None = None
+    """Learning curves' file, one per n_req (none if None)."""
+    curves_title: str = ""
+    smooth: int = 20
+    final: str = ""
+    """Final-score figure's file, over ``final_x``."""
+    final_x: str = "n_req"
+    final_title: str = ""
+    variant: tuple[str, ...] = ()
+    """runs.csv's ``variant`` column: the fields a sweep varies beyond the method."""
+    started: bool = False
+    """Runs still going count too (their curves so far): fig4-7's."""
+    twins: tuple[str, ...] = ()
+    """Sweeps whose finished runs give this sweep's runs their idealised twins (same
+    method, n_req and seed), the first sweep that has a twin giving it."""
+    pooled: bool = False
+
+
+def generic(name: str, group: str, curves: str | None, final: str, **kw) -> Figures:
+    """A sweep's ``NAME_curves_nreqN.png`` and ``NAME_final_vs_nreq.png``."""
+    return Figures(
+        name, group=group, curves=curves and f"{name}_curves_nreq{{n}}.png",
+        curves_title=f"{curves}, n_req = {{n}}", final=f"{name}_final_vs_nreq.png",
+        final_title=f"{final}: final score (last {{last}} generations)", **kw,
+    )  # fmt: skip
+
+
+MOTION = "{method} {motion}"
+CELLS_MOTION = ("method", "n_req", "motion")
+STRONGER = ("critic_step_input", "critic_top_k")
+ENSEMBLE = ("critic_ensemble", "critic_optimism")
+SWEEPS = [
+    *[Figures(name, ("method", "n_req"), started=True, smooth=smooth,
+              curves=f"fig4-6_{p}curves_nreq{{n}}.png", curves_title="15 rovers, 4 POIs, "
+              "n_req = {n}, {gens} generations ({smooth}-generation moving mean)",
+              final=f"fig7_{p}final_vs_nreq.png",
+              final_title="15 rovers, 4 POIs, {gens} generations: final score (last {last})")
+      for name, p, smooth in (("fig4-7", "", 20), ("fig4-7-long", "long_", 100))],
+    *[Figures(name, ("method", "n_req", "n_rovers"), pooled=name == "fig8-9-paper",
+              final=f"fig8-9_{p}final_vs_rovers_nreq{{n}}.png", final_x="n_rovers",
+              final_title="4 POIs, n_req = {n}, {gens} generations: final score (last {last})")
+      for name, p in (("fig8-9", ""), ("fig8-9-long", "long_"), ("fig8-9-paper", "paper_"))],
+    Figures("physics", CELLS_MOTION, MOTION, "physics_curves_nreq{n}.png",
+            "ideal vs physical motion, n_req = {n}", final="physics_final_vs_nreq.png",
+            started=True,
+            final_title="ideal vs physical motion: final score (last {last} gens)"),
+    # Issue 14: idealised vs physical motion at 5000 generations, the idealised twins listed
+    # again under this sweep's name (motion "ideal") to compare the models on equal seeds;
+    # its mean critic ran later as physics-long-mean (paper-claims sets the two side by side).
+    generic("physics-long", MOTION, "ideal vs physical motion, 5000 generations",
+            "ideal vs physical motion", cells=CELLS_MOTION, smooth=100,
+            twins=("physics-long-ideal", "fig4-7-long")),
+    generic("physics-long-mean", MOTION, None, "the mean critic under physical motion",
+            cells=CELLS_MOTION, pooled=True),
+    # Issue 13: D++ as the feedback, random POI layouts; issue 16: the stronger critics.
+    generic("dpp", "{method} on {feedback}", "D and the max critic on D or D++",
+            "D++ vs D as the feedback", cells=("method", "feedback", "n_req")),
+    generic("ring-random", "{method}", "random POI angles (one layout per generation)",
+            "random POI layouts", cells=("method", "n_req")),
+    generic("stronger-critic", "{method} " + fields_label(STRONGER), None,
+            "max critic variants", cells=(*STRONGER, "n_req")),
+    *[generic(name, "{method} " + fields_label(fields), None, "max critic variants",
+              cells=(*fields, "n_req"), variant=fields)
+      for name, fields in (("stronger-critic-ensemble", ENSEMBLE),
+                           ("ablation-output-weights", ("critic_output_weights",)))],
+]  # fmt: skip
+
+
+def load(root: Path, name: str, started: bool = False) -> list[Run]:
+    """The finished runs of sweep ``name`` under ``root`` (with ``started``, every run that
+    has a row); [] if the sweep is not there."""
+    if not (root / name).exists():
+        return []
+    runs = [r for r in plots.load_runs(find_runs([root / name])) if len(r.eval_G)]
+    return runs if started else [r for r in runs if is_finished(r.path)]
+
+
+def twins(physical: list[Run], sources: list[list[Run]]) -> list[Run]:
+    """For each (method, n_req, seed) of ``physical``, the run of the first source with it."""
+    key = lambda r: (r.fields["method"], r.fields["n_req"], r.fields["seed"])  # noqa: E731
+    by_cell = [{key(r): r for r in source} for source in sources]
+    found = [next((runs[c] for runs in by_cell if c in runs), None)
+             for c in sorted({key(r) for r in physical})]  # fmt: skip
+    return [run for run in found if run is not None]
+
+
+def as_column(row: dict, field: str):
+    """A runs.csv value as the config field's type (ints for n_req, n_rovers, seed)."""
+    return int(row[field]) if field in ("n_req", "n_rovers", "seed") else row[field]
+
+
+def run_row(sweep: Figures, run: Run, last: int) -> dict:
+    rows = read_metrics(run.path / "metrics.csv")
+    return {
+        "sweep": sweep.name, "run": run.path.name, "method": run.fields["method"],
+        "variant": label(fields_label(sweep.variant), run), "feedback": run.fields["feedback"],
+        "n_req": run.fields["n_req"], "n_rovers": run.fields["n_rovers"],
+        "motion": column(run, "motion"), "seed": run.fields["seed"],
+        "generations": len(rows), "final_G": round(final_score(run, last), 4),
+        "max_eval_G": float(run.eval_G.max()), "wall_seconds": round(rows[-1]["wall_seconds"], 1),
+        **provenance_columns(run.path),
+    }  # fmt: skip
+
+
+def make(sweep: Figures, runs: list[Run], kept: list[dict], last: int) -> tuple[list, list]:
+    """One sweep's figures; its rows of runs.csv and its lines of cells.md."""
     for run in runs:
-        run.group = label(run, fields)
-    return runs
-
-
-def motion_label(run: plots.Run) -> str:
-    return motion_model(run.fields["motion"], run.fields["collisions"])
+        run.group = label(sweep.group, run)
+    g_max = max(r.g_max for r in runs)
+    gens = max([len(r.eval_G) for r in runs] + [int(row["generations"]) for row in kept])
+    text = {"gens": gens, "smooth": sweep.smooth, "last": last}
+    n_reqs = sorted({r.fields["n_req"] for r in runs} | {as_column(r, "n_req") for r in kept})
+    for n in n_reqs if sweep.curves else ():
+        table = plots.curve_table([r for r in runs if r.fields["n_req"] == n], sweep.smooth)
+        plots.plot_curves(table, OUT / sweep.curves.format(n=n),
+                          sweep.curves_title.format(n=n, **text))  # fmt: skip
+    for n in n_reqs if "{n}" in sweep.final else [None]:
+        subset = [r for r in runs if n is None or r.fields["n_req"] == n]
+        rows = [row for row in kept if n is None or as_column(row, "n_req") == n]
+        scores: dict[str, dict] = defaultdict(lambda: defaultdict(list))
+        for run in subset:
+            scores[run.group][run.fields[sweep.final_x]].append(final_score(run, last))
+        for row in rows:
+            x = as_column(row, sweep.final_x)
+            scores[label(sweep.group, row)][x].append(float(row["final_G"]))
+        shared = {g: (max([r.g_max for r in subset if r.group == g], default=g_max), g)
+                  for g in scores}  # fmt: skip
+        table = scores_table(sweep.final_x, scores, shared) if rows else plots.final_table(
+            subset, sweep.final_x, last=last)  # fmt: skip
+        plots.plot_final(table, OUT / sweep.final.format(n=n), sweep.final_x,
+                         sweep.final_title.format(n=n, **text))  # fmt: skip
+    cells = defaultdict(list)
+    for row in kept:
+        cells[tuple(as_column(row, f) for f in sweep.cells)].append(float(row["final_G"]))
+    for run in runs:
+        cells[tuple(column(run, f) for f in sweep.cells)].append(final_score(run, last))
+    found = [run_row(sweep, run, last) for run in runs]
+    rows = sorted([*kept, *found], key=lambda row: row["run"]) if kept else found
+    lines = [f"\n### {sweep.name}\n", f"| {' | '.join(sweep.cells)} | final G (mean +- 95% CI)"
+             " | seeds |", "|" + "---|" * (len(sweep.cells) + 2)]  # fmt: skip
+    for cell in sorted(cells):
+        mean, ci, n = plots.mean_ci(np.array(cells[cell]))
+        lines.append(f"| {' | '.join(map(str, cell))} | {float(mean):.2f} +- {float(ci):.2f}"
+                     f" | {n} |")  # fmt: skip
+    return rows, lines
 
 
 ABLATED = ("method", "critic_lr", "critic_optimizer", "replay_pairs", "critic_hidden")
 """The fields the ablation changes, one at a time, from the paper's max critic."""
 
 
-def ablation_table(sweep: Path, last: int) -> None:
-    """results/ablation.{md,csv}: one row per variant (what differs from the paper's max
-    critic), per n_req the final G (mean +- 95% CI over seeds) and the critic's loss (its
-    mean squared error over the last ``last`` generations, mean over seeds)."""
+def ablation_table(runs: list[Run], last: int) -> None:
+    """results/ablation.{md,csv}: per variant (what differs from the paper's max critic)
+    and n_req, the final G (mean +- 95% CI over seeds), the critic's loss (mean squared
+    error over the last ``last`` generations, mean over seeds) and the seeds and
+    generations (``+`` when they differ)."""
     from physrover.config import LearnConfig
     from physrover.learn.configs import CriticConfig
 
     paper = {**LearnConfig(method="max-critic").to_dict(), **CriticConfig().to_dict()}
-    # finished runs only: a run still going would be scored on its last generations so far
-    runs = [
-        r for r in plots.load_runs(find_runs([sweep]))
-        if len(r.eval_G) and len(r.eval_G) >= r.fields["generations"]
-    ]  # fmt: skip
     cells = defaultdict(lambda: {"final": [], "loss": [], "gens": []})
     for run in runs:
         changed = [f"{f}={run.fields[f]}" for f in ABLATED if run.fields[f] != paper[f]]
-        variant = ", ".join(changed) or "the paper's max critic"
         rows = read_metrics(run.path / "metrics.csv")
         loss = np.array([r["critic_loss"] for r in rows[-last:]], dtype=float)
-        cell = cells[(variant, run.fields["n_req"])]
+        cell = cells[(", ".join(changed) or "the paper's max critic", run.fields["n_req"])]
         cell["final"].append(final_score(run, last))
         cell["loss"].append(float(np.nanmean(loss)) if np.isfinite(loss).any() else np.nan)
         cell["gens"].append(len(rows))
     n_reqs = sorted({n for _, n in cells})
     variants = sorted({v for v, _ in cells}, key=lambda v: (v != "the paper's max critic", v))
     head = " | ".join(f"n_req {n}: final G | loss | seeds, gens" for n in n_reqs)
-    lines = [f"| variant | {head} |", "|---|" + "---|---|---|" * len(n_reqs)]
-    csv_rows = []
+    lines, csv_rows = [f"| variant | {head} |", "|---|" + "---|---|---|" * len(n_reqs)], []
     for v in variants:
         parts = []
-        for n in n_reqs:
-            c = cells.get((v, n))
+        for n, c in ((n, cells.get((v, n))) for n in n_reqs):
             if not c:
                 parts.append("| | ")
                 continue
@@ -111,153 +274,76 @@ def ablation_table(sweep: Path, last: int) -> None:
                              "min_generations": min(c["gens"])})  # fmt: skip
         lines.append(f"| {v} | " + " | ".join(parts) + " |")
     (OUT / "ablation.md").write_text("\n".join(lines) + "\n")
-    with open(OUT / "ablation.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(csv_rows[0]))
-        writer.writeheader()
-        writer.writerows(csv_rows)
+    write_csv(csv_rows, list(csv_rows[0]), OUT / "ablation.csv")
 
 
-def _max_critic_at(n_req: int, episodes: int) -> str:
-    """The max critic's mean eval G after the generation at which it had played
-    ``episodes`` training episodes (50 a generation): fig4-7-long's curves (10 seeds,
-    100-generation moving mean) where they exist, else fig4-7's (5 seeds, 20)."""
+def max_critic_at(n_req: int, episodes: int) -> str:
+    """The max critic's mean eval G after ``episodes`` training episodes (50 a generation):
+    fig4-7-long's curves (10 seeds, 100-generation moving mean), else fig4-7's (5, 20)."""
     for name in (f"fig4-6_long_curves_nreq{n_req}.csv", f"fig4-6_curves_nreq{n_req}.csv"):
         if (OUT / name).exists():
-            break
-    else:
-        return "n/a"
-    with open(OUT / name, newline="") as f:
-        rows = [r for r in csv.DictReader(f) if r["group"] == "max-critic"]
-    generation = episodes // 50
-    first = int(rows[0]["generation"]) if rows else 1  # 0 in files written by 0.1.0
-    for row in rows:
-        if int(row["generation"]) - first + 1 == generation:
-            return f"{float(row['mean']):.2f} +- {float(row['ci95_half_width']):.2f}"
+            with open(OUT / name, newline="") as f:
+                rows = [r for r in csv.DictReader(f) if r["group"] == "max-critic"]
+            first = int(rows[0]["generation"]) if rows else 1  # 0 in files of 0.1.0
+            at = [r for r in rows if int(r["generation"]) - first + 1 == episodes // 50]
+            if at:
+                return f"{float(at[0]['mean']):.2f} +- {float(at[0]['ci95_half_width']):.2f}"
+            return "n/a"
     return "n/a"
 
 
-def _column(row: dict, field: str):
-    """A runs.csv value as the config field's type (ints for n_req, n_rovers, seed)."""
-    value = row[field]
-    return int(value) if field in ("n_req", "n_rovers", "seed") else value
+def trainer_label(run: Run) -> str:
+    """A gradient-based run's group: its method and budget unless 25,000 episodes; MADDPG's
+    with its warm-up, or marked as 0.1's (no ``action_penalty`` in its [maddpg] table: no
+    penalty nor clipping, never pooled with the runs that had them)."""
+    method, budget = run.fields["method"], int(run.fields[f"{run.fields['method']}.total_episodes"])
+    if method == "maddpg" and "action_penalty" not in (run.path / "config.toml").read_text():
+        method = "maddpg (0.1: no penalty, no clipping)"
+    elif method == "maddpg":
+        method = f"maddpg ({run.fields['maddpg.warmup_actions']} warm-up)"
+    return method + ("" if budget == 25000 else f", {budget:,} episodes")
 
 
-POOLED = ("fig8-9-paper", "physics-long-mean")
-"""Final-score sweeps whose committed runs.csv rows are pooled with the runs found (module
-docstring): the ones run in chunks of seeds across machines."""
-POOLED_LAST = 50
-"""The ``--last`` of the committed rows' final scores; another ``--last`` pools nothing."""
-
-
-def _final_scores(runs: list[plots.Run], rows: list[dict], x: str, last: int,
-                  g_max: float, row_group=lambda row: row["method"]) -> Table:  # fmt: skip
-    """:func:`plots.final_table` of ``runs`` (grouped by their ``group``, the method in the
-    fig8-9 sweeps) with the final scores of the kept runs.csv ``rows`` pooled in, by
-    ``row_group(row)`` (the method); a group's G max is the largest of its runs found, or
-    ``g_max`` if it has none."""
-    if not rows:
-        return plots.final_table(runs, x, last=last)
-    scores: dict[str, dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
-    for run in runs:
-        scores[run.group][run.fields[x]].append(final_score(run, last))
-    for row in rows:
-        scores[row_group(row)][_column(row, x)].append(float(row["final_G"]))
-    shared = {group: (max([r.g_max for r in runs if r.group == group], default=g_max), group)
-              for group in scores}  # fmt: skip
-    return scores_table(x, scores, shared)
-
-
-def _twins(physical: list[plots.Run], *sources: list[plots.Run]) -> list[plots.Run]:
-    """The idealised twins of ``physical`` runs: for each (method, n_req, seed) of theirs,
-    the run of the first of ``sources`` that has it (none if no source has it)."""
-    wanted = sorted({(r.fields["method"], r.fields["n_req"], r.fields["seed"]) for r in physical})
-    by_cell = [{(r.fields["method"], r.fields["n_req"], r.fields["seed"]): r for r in source}
-               for source in sources]  # fmt: skip
-    twins = []
-    for cell in wanted:
-        found = next((runs[cell] for runs in by_cell if cell in runs), None)
-        if found is not None:
-            twins.append(found)
-    return twins
-
-
-def trainer_label(run: plots.Run) -> str:
-    """A gradient-based run's row: its method and, for MADDPG, its warm-up; a MADDPG run
-    whose config predates the pre-tanh penalty and gradient clipping (physrover 0.1: no
-    ``action_penalty`` in its [maddpg] table; loading it would fill in today's defaults) is
-    marked so, never pooled with the runs that had them."""
-    method = run.fields["method"]
-    if method != "maddpg":
-        return method
-    if "action_penalty" not in (run.path / "config.toml").read_text():
-        return "maddpg (0.1: no penalty, no clipping)"
-    return f"maddpg ({run.fields['maddpg.warmup_actions']} warm-up)"
-
-
-def _first_episodes(run: plots.Run, episodes: int) -> plots.Run:
-    """``run`` cut to its rows up to ``episodes`` training episodes."""
-    keep = run.episodes <= episodes
-    return dataclasses.replace(run, eval_G=run.eval_G[keep], generation=run.generation[keep],
-                               episodes=run.episodes[keep])  # fmt: skip
-
-
-def _budget(run: plots.Run) -> int:
-    """A gradient-based run's budget of training episodes (its config's)."""
-    return int(run.fields[f"{run.fields['method']}.total_episodes"])
-
-
-def marl_table(sweeps: list[Path], last: int, ccea: list[plots.Run] = ()) -> None:
+def marl_table(runs: list[Run], last: int, ccea: list[Run]) -> None:
     """results/marl.{md,csv} and marl_curves_nreq*.png (finished runs of the gradient-based
-    sweeps, ``marl``, ``maddpg-check``, ``maddpg-grid``, ``mappo-long``): each method's
-    (:func:`trainer_label`, and its budget unless 25,000 episodes) final eval G (mean of
-    the last ``last`` iterations, 95% CI over seeds), the share of seeds that learn, and
-    the max critic after as many training episodes (:func:`_max_critic_at`). The curves
-    are on training episodes, one figure per n_req and budget (``_250000`` appended for
-    budgets other than 25,000), with the ``ccea`` runs of the same n_req (fig4-7-long's)
-    over the same number of episodes."""
-    runs = [r for r in plots.load_runs(find_runs(sweeps)) if len(r.eval_G)]
-    runs = [r for r in runs if (r.path / "state.json").exists() and _finished(r.path)]
+    sweeps): per method (:func:`trainer_label`) and n_req the final eval G (last ``last``
+    iterations, 95% CI over seeds), the share of seeds that learn and the max critic after
+    as many episodes; curves on training episodes, one figure per n_req and budget
+    (``_250000`` appended unless 25,000), with the ``ccea`` runs of the n_req cut there."""
     cells = defaultdict(lambda: {"final": [], "episodes": []})
     for run in runs:
         run.group = trainer_label(run)
-        if _budget(run) != 25000:  # the 25,000-episode runs are the default; others say so
-            run.group += f", {_budget(run):,} episodes"
         cell = cells[(run.group, run.fields["n_req"])]
         cell["final"].append(final_score(run, last))
         cell["episodes"].append(int(run.episodes[-1]))
-    for n_req, budget in sorted({(r.fields["n_req"], _budget(r)) for r in runs}):
-        subset = [r for r in runs if r.fields["n_req"] == n_req and _budget(r) == budget]
+    budget = lambda r: int(r.fields[f"{r.fields['method']}.total_episodes"])  # noqa: E731
+    for n_req, episodes in sorted({(r.fields["n_req"], budget(r)) for r in runs}):
+        subset = [r for r in runs if r.fields["n_req"] == n_req and budget(r) == episodes]
         played = max(int(r.episodes[-1]) for r in subset)
-        for run in ccea:
-            if run.fields["n_req"] == n_req:
-                subset.append(_first_episodes(run, played))
-                subset[-1].group = f"{run.fields['method']} (CCEA)"
-        smooth = 20 if budget == 25000 else 100
-        table = plots.curve_table(subset, smooth=smooth)
-        suffix = "" if budget == 25000 else f"_{budget}"
-        plots.plot_curves(table, OUT / f"marl_curves_nreq{n_req}{suffix}.png",
+        for run in (r for r in ccea if r.fields["n_req"] == n_req):
+            keep = run.episodes <= played
+            cut = dict(eval_G=run.eval_G[keep], episodes=run.episodes[keep],
+                       generation=run.generation[keep])  # fmt: skip
+            subset.append(dataclasses.replace(run, **cut))
+            subset[-1].group = f"{run.fields['method']} (CCEA)"
+        usual = episodes == 25000
+        plots.plot_curves(plots.curve_table(subset, smooth=20 if usual else 100),
+                          OUT / f"marl_curves_nreq{n_req}{'' if usual else f'_{episodes}'}.png",
                           f"15 rovers, 4 POIs, n_req = {n_req}", x="episodes")  # fmt: skip
-    lines = [
-        "| n_req | method | episodes | final G (mean +- 95% CI) | seeds that learn | "
-        "max critic after as many episodes |",
-        "|---|---|---|---|---|---|",
-    ]
+    lines = ["| n_req | method | episodes | final G (mean +- 95% CI) | seeds that learn | "
+             "max critic after as many episodes |", "|---|---|---|---|---|---|"]  # fmt: skip
     csv_rows = []
     for (method, n_req), c in sorted(cells.items(), key=lambda kv: (kv[0][1], kv[0][0])):
         mean, ci, k = plots.mean_ci(np.array(c["final"]))
-        episodes = min(c["episodes"])
-        learned = float(np.mean(np.array(c["final"]) > 0.5))
-        reference = _max_critic_at(n_req, episodes)
+        episodes, learned = min(c["episodes"]), float(np.mean(np.array(c["final"]) > 0.5))
+        reference = max_critic_at(n_req, episodes)
         lines.append(f"| {n_req} | {method} | {episodes} | {float(mean):.2f} +- {float(ci):.2f}"
                      f" | {learned:.0%} of {k} | {reference} |")  # fmt: skip
         csv_rows.append({"method": method, "n_req": n_req, "episodes": episodes,
                          "final_G": float(mean), "ci95": float(ci), "seeds": k,
                          "learned": learned, "max_critic_same_episodes": reference})  # fmt: skip
     (OUT / "marl.md").write_text("\n".join(lines) + "\n")
-    with open(OUT / "marl.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(csv_rows[0]))
-        writer.writeheader()
-        writer.writerows(csv_rows)
+    write_csv(csv_rows, list(csv_rows[0]), OUT / "marl.csv")
 
 
 def main() -> None:
@@ -265,277 +351,50 @@ def main() -> None:
     parser.add_argument("--root", default="runs/sweeps")
     parser.add_argument("--last", type=int, default=50)
     args = parser.parse_args()
-    root = Path(args.root)
+    root, last = Path(args.root), args.last
     OUT.mkdir(parents=True, exist_ok=True)
-    previous_rows = []
+    previous = []
     if (OUT / "runs.csv").exists():
         with open(OUT / "runs.csv", newline="") as f:
-            previous_rows = list(csv.DictReader(f))
-        for row in previous_rows:  # written before runs.csv had these columns
-            row.setdefault("feedback", "D")
-            row.setdefault("variant", "")
-            row.setdefault("code", "")  # (and before runs recorded their provenance)
-            row.setdefault("cpu", "")
-    summary_rows = []
-    cell_sections: dict[str, list[str]] = {}  # sweep -> its lines of cells.md
-
-    def summarise(name: str, runs: list[plots.Run], cell_fields: tuple[str, ...], key=None,
-                  variant_fields: tuple[str, ...] = (), kept: list[dict] = ()):  # fmt: skip
-        """Rows of runs.csv and a table of cells.md; the ``variant`` column names the
-        ``variant_fields`` a sweep varies beyond the method. ``kept``: rows of runs.csv of
-        runs not on disk, pooled into the cells (``cell_fields`` must be columns) and
-        written again."""
-        cells = defaultdict(list)
-        first = len(summary_rows)
-        for row in kept:
-            cells[tuple(_column(row, f) for f in cell_fields)].append(float(row["final_G"]))
-            summary_rows.append(row)
-        for run in runs:
-            rows = read_metrics(run.path / "metrics.csv")
-            final = final_score(run, args.last)
-            cell = key(run) if key else tuple(run.fields[f] for f in cell_fields)
-            cells[cell].append(final)
-            summary_rows.append(
-                {
-                    "sweep": name,
-                    "run": run.path.name,
-                    "method": run.fields["method"],
-                    "variant": variant(run, variant_fields),
-                    "feedback": run.fields["feedback"],
-                    "n_req": run.fields["n_req"],
-                    "n_rovers": run.fields["n_rovers"],
-                    "motion": motion_label(run),
-                    "seed": run.fields["seed"],
-                    "generations": len(rows),
-                    "final_G": round(final, 4),
-                    "max_eval_G": float(run.eval_G.max()),
-                    "wall_seconds": round(rows[-1]["wall_seconds"], 1),
-                    **provenance_columns(run.path),
-                }
-            )
-        if kept:  # kept and found runs in the order of a sweep found whole (find_runs')
-            summary_rows[first:] = sorted(summary_rows[first:], key=lambda row: row["run"])
-        cell_lines = cell_sections.setdefault(name, [])
-        cell_lines.append(f"\n### {name}\n")
-        header = " | ".join(cell_fields)
-        cell_lines.append(f"| {header} | final G (mean +- 95% CI) | seeds |")
-        cell_lines.append("|" + "---|" * (len(cell_fields) + 2))
-        for cell in sorted(cells, key=lambda c: c if isinstance(c, tuple) else (c,)):
-            mean, ci, n = plots.mean_ci(np.array(cells[cell]))
-            cols = " | ".join(str(c) for c in cell) if isinstance(cell, tuple) else cell
-            cell_lines.append(f"| {cols} | {float(mean):.2f} +- {float(ci):.2f} | {n} |")
-
-    def pooled_rows(name: str, runs: list[plots.Run]) -> list[dict]:
-        """The committed rows of a :data:`POOLED` sweep's finished runs not found on disk
-        (none for another sweep)."""
-        return _kept_finals(previous_rows, name, runs) if name in POOLED else []
-
-    def left_as_committed(name: str) -> bool:
-        """Whether a :data:`POOLED` sweep is skipped because ``--last`` is not its committed
-        rows': their finals cannot be pooled with others, nor dropped (said so)."""
-        if name not in POOLED or args.last == POOLED_LAST or not (root / name).exists():
-            return False
-        print(f"{name}: --last {args.last} is not the committed rows' {POOLED_LAST}: its "
-              "rows, table and figures are left as they are")  # fmt: skip
-        return True
-
-    # fig4-7 (800 generations) and fig4-7-long (the paper's 5000): the same grid.
-    for name, prefix, smooth in (("fig4-7", "", 20), ("fig4-7-long", "long_", 100)):
-        fig = root / name
-        if not fig.exists():
+            previous = list(csv.DictReader(f))
+        for row in previous:  # written before runs.csv had these columns
+            for name, default in (("feedback", "D"), ("variant", ""), ("code", ""), ("cpu", "")):
+                row.setdefault(name, default)
+    rows: dict[str, list[dict]] = {}  # sweep -> its rows of runs.csv
+    sections: dict[str, list[str]] = {}  # sweep -> its lines of cells.md
+    skipped = False
+    for sweep in SWEEPS:
+        if sweep.pooled and last != POOLED_LAST and (root / sweep.name).exists():
+            print(f"{sweep.name}: --last {last} is not the committed rows' {POOLED_LAST}: "
+                  "its rows, table and figures are left as they are")  # fmt: skip
+            skipped = True
             continue
-        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G)]  # started
-        gens = max(len(r.eval_G) for r in runs)
-        for n_req in sorted({r.fields["n_req"] for r in runs}):
-            subset = regroup([r for r in runs if r.fields["n_req"] == n_req], ())
-            table = plots.curve_table(subset, smooth=smooth)
-            plots.plot_curves(
-                table,
-                OUT / f"fig4-6_{prefix}curves_nreq{n_req}.png",
-                f"15 rovers, 4 POIs, n_req = {n_req}, {gens} generations "
-                f"({smooth}-generation moving mean)",
-            )
-        regroup(runs, ())
-        plots.plot_final(
-            plots.final_table(runs, "n_req", last=args.last),
-            OUT / f"fig7_{prefix}final_vs_nreq.png",
-            "n_req",
-            f"15 rovers, 4 POIs, {gens} generations: final score (last {args.last})",
-        )
-        summarise(name, runs, ("method", "n_req"))
-
-    # fig8-9 (400 generations), fig8-9-long (2000) and fig8-9-paper (5000): the same grid.
-    for name, prefix in (("fig8-9", ""), ("fig8-9-long", "long_"), ("fig8-9-paper", "paper_")):
-        fig = root / name
-        if not fig.exists() or left_as_committed(name):
-            continue
-        # finished runs only: their rows are final scores that later machines keep
-        runs = [r for r in plots.load_runs(find_runs([fig])) if len(r.eval_G) and _finished(r.path)]
-        if not runs:
-            continue
-        gens = max(len(r.eval_G) for r in runs)
-        kept = pooled_rows(name, runs)
-        gens = max([gens, *(int(row["generations"]) for row in kept)])
-        regroup(runs, ())
-        g_max = max(r.g_max for r in runs)
-        for n_req in sorted(
-            {r.fields["n_req"] for r in runs} | {_column(r, "n_req") for r in kept}
-        ):
-            subset = [r for r in runs if r.fields["n_req"] == n_req]
-            rows = [row for row in kept if _column(row, "n_req") == n_req]
-            plots.plot_final(
-                _final_scores(subset, rows, "n_rovers", args.last, g_max),
-                OUT / f"fig8-9_{prefix}final_vs_rovers_nreq{n_req}.png",
-                "n_rovers",
-                f"4 POIs, n_req = {n_req}, {gens} generations: final score (last {args.last})",
-            )
-        summarise(name, runs, ("method", "n_req", "n_rovers"), kept=kept)
-
-    fig = root / "physics"
-    if fig.exists():
-        runs = plots.load_runs(find_runs([fig]))
-        for run in runs:
-            run.group = f"{run.fields['method']} {motion_label(run)}"
-        for n_req in sorted({r.fields["n_req"] for r in runs}):
-            subset = [r for r in runs if r.fields["n_req"] == n_req]
-            table = plots.curve_table(subset, smooth=20)
-            plots.plot_curves(
-                table,
-                OUT / f"physics_curves_nreq{n_req}.png",
-                f"ideal vs physical motion, n_req = {n_req}",
-            )
-        plots.plot_final(
-            plots.final_table(runs, "n_req", last=args.last),
-            OUT / "physics_final_vs_nreq.png",
-            "n_req",
-            f"ideal vs physical motion: final score (last {args.last} gens)",
-        )
-        summarise(
-            "physics",
-            runs,
-            ("method", "n_req", "motion"),
-            key=lambda r: f"{r.fields['method']} | {r.fields['n_req']} | {motion_label(r)}",
-        )
-
-    def finished_runs(name: str) -> list[plots.Run]:
-        """The finished runs of sweep ``name`` under --root ([] if it is not there)."""
-        if not (root / name).exists():
-            return []
-        runs = [r for r in plots.load_runs(find_runs([root / name])) if len(r.eval_G)]
-        return [r for r in runs if _finished(r.path)]
-
-    def curves_and_finals(name: str, runs: list[plots.Run], curves: str | None, final: str,
-                          smooth: int = 20):  # fmt: skip
-        """``NAME_curves_nreqN.png`` per n_req (titled ``curves`` + n_req; none if None;
-        ``smooth``-generation moving means) and ``NAME_final_vs_nreq.png`` (titled
-        ``final``), with their CSVs."""
-        if curves is not None:
-            for n_req in sorted({r.fields["n_req"] for r in runs}):
-                subset = [r for r in runs if r.fields["n_req"] == n_req]
-                plots.plot_curves(
-                    plots.curve_table(subset, smooth=smooth),
-                    OUT / f"{name}_curves_nreq{n_req}.png",
-                    f"{curves}, n_req = {n_req}",
-                )
-        plots.plot_final(
-            plots.final_table(runs, "n_req", last=args.last),
-            OUT / f"{name}_final_vs_nreq.png",
-            "n_req",
-            f"{final}: final score (last {args.last} generations)",
-        )
-
-    # Issue 14: idealised vs physical motion at 5000 generations. The idealised twins (same
-    # method, n_req and seed) of a method are physics-long-ideal's runs where it has them
-    # (the same commit and machine as the physical runs), else fig4-7-long's; they are
-    # listed again under this sweep's name (motion "ideal") so its table compares the three
-    # models on equal seeds.
-    def motion_cell(run: plots.Run) -> tuple:
-        """A physical run's cell, as runs.csv's method, n_req and motion columns read."""
-        return run.fields["method"], run.fields["n_req"], motion_label(run)
-
-    physical = finished_runs("physics-long")
-    if physical:
-        twins = _twins(physical, finished_runs("physics-long-ideal"), finished_runs("fig4-7-long"))
-        runs = physical + twins
-        for run in runs:
-            run.group = f"{run.fields['method']} {motion_label(run)}"
-        curves_and_finals("physics-long", runs, "ideal vs physical motion, 5000 generations",
-                          "ideal vs physical motion", smooth=100)  # fmt: skip
-        summarise("physics-long", runs, ("method", "n_req", "motion"), key=motion_cell)
-    # Its third method, the mean critic, run later as a sweep of its own (physics-long's run
-    # directories did not survive their machine): the paper-claims file sets its rows against
-    # physics-long's max critic and fig4-7-long's idealised mean critic.
-    # It runs in chunks of seeds across machines (POOLED): final scores only.
-    runs = [] if left_as_committed("physics-long-mean") else finished_runs("physics-long-mean")
-    if runs:
-        for run in runs:
-            run.group = f"{run.fields['method']} {motion_label(run)}"
-        kept = pooled_rows("physics-long-mean", runs)
-        plots.plot_final(
-            _final_scores(runs, kept, "n_req", args.last, max(r.g_max for r in runs),
-                          row_group=lambda row: f"{row['method']} {row['motion']}"),
-            OUT / "physics-long-mean_final_vs_nreq.png",
-            "n_req",
-            f"the mean critic under physical motion: final score (last {args.last} generations)",
-        )  # fmt: skip
-        summarise("physics-long-mean", runs, ("method", "n_req", "motion"), key=motion_cell,
-                  kept=kept)  # fmt: skip
-
-    # Issue 13: D++ as the feedback (experiment 1) and random POI layouts (experiment 2).
-    runs = finished_runs("dpp")
-    if runs:
-        for run in runs:
-            run.group = f"{run.fields['method']} on {run.fields['feedback']}"
-        curves_and_finals("dpp", runs, "D and the max critic on D or D++",
-                          "D++ vs D as the feedback")  # fmt: skip
-        summarise("dpp", runs, ("method", "feedback", "n_req"))
-    runs = finished_runs("ring-random")
-    if runs:
-        regroup(runs, ())
-        curves_and_finals("ring-random", runs, "random POI angles (one layout per generation)",
-                          "random POI layouts")  # fmt: skip
-        summarise("ring-random", runs, ("method", "n_req"))
-    # Issue 16, part 3: the stronger-critic screen (compare with the ablation's paper row).
-    runs = finished_runs("stronger-critic")
-    if runs:
-        regroup(runs, ("critic_step_input", "critic_top_k"))
-        curves_and_finals("stronger-critic", runs, None, "max critic variants")
-        summarise("stronger-critic", runs, ("critic_step_input", "critic_top_k", "n_req"))
-    # Issue 16: the optimistic ensemble (part 3) and trained output weights (part 2), each
-    # with variants of the paper's max critic (the latter with the paper's as its control).
-    for name, fields in (("stronger-critic-ensemble", ("critic_ensemble", "critic_optimism")),
-                         ("ablation-output-weights", ("critic_output_weights",))):  # fmt: skip
-        runs = finished_runs(name)
+        runs = load(root, sweep.name, sweep.started)
+        if runs and sweep.twins:
+            runs += twins(runs, [load(root, name) for name in sweep.twins])
         if runs:
-            regroup(runs, fields)
-            curves_and_finals(name, runs, None, "max critic variants")
-            summarise(name, runs, (*fields, "n_req"), variant_fields=fields)
-
+            kept = kept_rows(previous, sweep.name, runs) if sweep.pooled else []
+            rows[sweep.name], sections[sweep.name] = make(sweep, runs, kept, last)
     if (root / "ablation").exists():
-        ablation_table(root / "ablation", args.last)
-    marl_sweeps = [root / n for n in ("marl", "maddpg-check", "maddpg-grid", "mappo-long")
-                   if (root / n).exists()]  # fmt: skip
-    if marl_sweeps:
-        marl_table(marl_sweeps, args.last, finished_runs("fig4-7-long"))
-    if not summary_rows:
-        if (root / "ablation").exists() or marl_sweeps or any(map(left_as_committed, POOLED)):
+        ablation_table(load(root, "ablation"), last)
+    marl = [r for n in ("marl", "maddpg-check", "maddpg-grid", "mappo-long") for r in load(root, n)]
+    if marl:
+        marl_table(marl, last, load(root, "fig4-7-long"))
+    if not rows:
+        if (root / "ablation").exists() or marl or skipped:
             return
         raise SystemExit(f"no sweeps found under {root}")
     # Sweeps not present under --root keep their rows and tables from the previous run.
-    kept_rows = [row for row in previous_rows if row["sweep"] not in cell_sections]
     if (OUT / "cells.md").exists():
         for section in (OUT / "cells.md").read_text().split("\n### ")[1:]:
             name, body = section.split("\n", 1)
-            cell_sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
-    order = ["fig4-7", "fig4-7-long", "fig8-9", "fig8-9-long", "fig8-9-paper", "physics",
-             "physics-long", "physics-long-mean", "dpp", "ring-random", "stronger-critic",
-             "stronger-critic-ensemble", "ablation-output-weights"]  # fmt: skip
-    rows = sorted(kept_rows + summary_rows, key=lambda r: order.index(r["sweep"]))
-    with open(OUT / "runs.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(summary_rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    lines = [line for name in order for line in cell_sections.get(name, [])]
+            sections.setdefault(name.strip(), [f"\n### {name.strip()}\n", body.strip("\n")])
+    order = [sweep.name for sweep in SWEEPS]
+    kept = [row for row in previous if row["sweep"] not in rows]
+    found = [row for sweep in order for row in rows.get(sweep, [])]
+    header = list(found[0])
+    write_csv(sorted(kept + found, key=lambda r: order.index(r["sweep"])), header, OUT / "runs.csv")
+    lines = [line for name in order for line in sections.get(name, [])]
     (OUT / "cells.md").write_text("\n".join(lines) + "\n")
     print(f"wrote {OUT}")
 

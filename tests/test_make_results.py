@@ -43,6 +43,7 @@ def make_results(monkeypatch):
         "make_results", ROOT / "experiments" / "make_results.py"
     )
     module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "make_results", module)  # for its dataclasses
     spec.loader.exec_module(module)
 
     def run(root: Path, out: Path, last: int = 50) -> None:
