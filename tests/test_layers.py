@@ -140,6 +140,17 @@ def test_the_tree_reads_from_the_door():
     assert not long, long
 
 
+MAX_EXPERIMENTS = 900
+
+
+def test_experiments_hold_figure_choices_not_a_second_package():
+    """experiments/ keeps this project's figure choices and studies (issue 42): what any
+    user of the package needs lives in physrover.analysis, benchmarks in benchmarks/."""
+    scripts = (Path(__file__).parents[1] / "experiments").glob("*.py")
+    total = sum(len(p.read_text().splitlines()) for p in scripts)
+    assert 0 < total <= MAX_EXPERIMENTS, total
+
+
 def test_the_public_surface():
     for name in physrover.__all__:
         assert getattr(physrover, name) is not None, name

@@ -60,7 +60,7 @@ class PhysicsConfig(ConfigBase):
     reference; about twice as slow in open space); ``"compiled"``, the compiled step
     always, the rovers' contacts with walls and obstacles resolved by the compiled contact
     pass alone (without Chipmunk's contacts after it: the same overlaps in
-    ``experiments/contacts.py`` at the default 4 substeps, different trajectories, a
+    ``benchmarks/contacts.py`` at the default 4 substeps, different trajectories, a
     walled world ~2.8x faster)."""
 
     def __post_init__(self) -> None:

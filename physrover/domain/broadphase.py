@@ -39,7 +39,7 @@ GRID_MIN_POINTS = 80
 overlaps, from the grid; smaller ones test every pair. Measured (2026-12-03, EPYC Zen 4,
 one thread, teams spread as ``physrover bench world --rovers`` spreads them, reach 0.9):
 listing the pairs costs the same both ways at 75 rovers, the grid 1.5x less at 100, 5x
-at 300, 17x at 1000 (``experiments/scaling_vs_vmas.py`` has the whole world's scaling)."""
+at 300, 17x at 1000 (``benchmarks/scaling_vs_vmas.py`` has the whole world's scaling)."""
 
 SENSOR_GRID_MIN_POINTS = 100
 """Teams of at least this many rovers find the neighbours of a sensor with a finite radius
@@ -47,7 +47,7 @@ from the grid. The all-pairs sensor is vectorised over 16 observing rovers at a 
 wins in small teams. Measured (2026-12-03, EPYC Zen 4, one thread, radius 5, teams spread as
 ``physrover bench world --rovers`` spreads them, layouts changing every step), us to sense
 1500 rovers: all-pairs 43 / 127 / 172 / 284 / 457 at 15 / 75 / 100 / 200 / 400 rovers a
-team, the grid 150-170 throughout (``experiments/scaling_vs_vmas.py``). A denser team (more
+team, the grid 150-170 throughout (``benchmarks/scaling_vs_vmas.py``). A denser team (more
 neighbours within the radius) moves the crossover up."""
 
 _CELL_MARGIN = 1.0 + 1e-9

@@ -20,7 +20,7 @@ CONTACT_SWEEPS = 20
 at the first sweep that changes nothing); larger teams get more (:func:`contact_sweeps`).
 A column of 10 rovers driven into a box at 1 substep ends steps 16% overlapped with 10
 sweeps, 5.7% with 20, 1.3% with 40; at the default 4 substeps 0.5-1% from 10 on
-(``experiments/contacts.py``)."""
+(``benchmarks/contacts.py``)."""
 
 
 @jit
@@ -30,7 +30,7 @@ def contact_sweeps(n_rovers):
     travels about a pair a sweep, and a jam is as deep as the team is wide): 52 at 100
     rovers, 164 at 1000. With 20 at 1000 rovers a team driven into its centre ended steps
     up to 8.9% overlapped (median 1.5% of the pairs in contact), with 200 0.7% (0.5%), as
-    at 15 rovers (``experiments/contacts.py``, "converge"). A converged pass stops early,
+    at 15 rovers (``benchmarks/contacts.py``, "converge"). A converged pass stops early,
     and revisits only the pairs whose velocities changed, so the cap costs only where a
     jam needs it."""
     return np.int64(math.ceil(CONTACT_SWEEPS * math.sqrt(max(n_rovers, 15) / 15.0)))

@@ -18,7 +18,7 @@ multiply-adds, which a build for another CPU might, changing last bits) in half 
 until physrover 0.4 more than half of the physical step was moving state in and out of
 pymunk. ``integrator = "pymunk"`` steps pymunk in open space too; ``integrator =
 "compiled"`` never uses pymunk, leaving the contacts with walls and obstacles to the
-compiled pass alone (below), which holds them as well in ``experiments/contacts.py`` (a
+compiled pass alone (below), which holds them as well in ``benchmarks/contacts.py`` (a
 column of rovers into a box or the walls: 0.6% and 0.5% worst overlap at 4 substeps either
 way, 7.1% and 5.4% against 5.8% and 5.6% at 1; a rover against the walls stays within the
 slop, 0.002 units, either way) in a third of the time (a walled 50-team episode 42 against
@@ -63,7 +63,7 @@ against obstacles until nothing changes, at most 20 sweeps up to 15 rovers and m
 larger teams, ``contact_sweeps``; the pairs from a grid in large teams). Chipmunk, which
 detects contacts between discrete positions, lets rovers closing at more than a
 diameter per physics step pass through each other; the pass holds at any number of
-substeps (``experiments/contacts.py``: no pass-through head-on at any impact phase, worst
+substeps (``benchmarks/contacts.py``: no pass-through head-on at any impact phase, worst
 overlap at a step end ~1% of a diameter in crowds, 0.0% in steady pushing, 0.6% for a
 column of rovers driven into a box or a wall at the default 4 substeps, 5.8% at 1). Until
 physrover 0.3, Chipmunk also collided the rovers' shapes with each other after the pass;

@@ -53,7 +53,7 @@ MAX_STENCIL = 4
 MAX_NEAR = 48
 """An agent with more agents than this in its cells (a crowd) scans every agent instead:
 sorting its candidates into index order (by insertion) would cost more. Measured
-(2026-12-03, EPYC Zen 3, ``experiments/bench/mixed200.toml`` packed into the paper's spawn
+(2026-12-03, EPYC Zen 3, ``benchmarks/configs/mixed200.toml`` packed into the paper's spawn
 disc): the grid 3.4x slower than all-pairs without the cap."""
 
 

@@ -1,7 +1,7 @@
 """Team-size scaling of physrover and of VMAS ``discovery``, in one script (issue 32).
 
     pip install vmas
-    python experiments/scaling_vs_vmas.py [--rovers 15,100,400,1000] [--repeats 5]
+    python benchmarks/scaling_vs_vmas.py [--rovers 15,100,400,1000] [--repeats 5]
                                           [--vmas-steps 50] [--no-vmas]
 
 For each team size R, about 1500 agents in all (max(1, 1500 // R) teams): M agent-steps per

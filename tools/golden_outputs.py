@@ -3,8 +3,8 @@
 them unchanged). Runs the ``physrover`` on PATH in a scratch directory and prints one
 ``name digest`` line per output; diff the lines of two installs:
 
-    /path/to/venv-a/bin/python experiments/golden_outputs.py > a.txt
-    /path/to/venv-b/bin/python experiments/golden_outputs.py > b.txt
+    /path/to/venv-a/bin/python tools/golden_outputs.py > a.txt
+    /path/to/venv-b/bin/python tools/golden_outputs.py > b.txt
     diff a.txt b.txt
 
 Wall-clock columns and provenance (times, hosts, versions) are left out of the digests;
@@ -66,7 +66,7 @@ def video_digest(path: Path) -> str:
 def main() -> None:
     with tempfile.TemporaryDirectory() as scratch:
         root = Path(scratch)
-        mixed = Path(__file__).parent / "bench" / "mixed15.toml"
+        mixed = Path(__file__).parents[1] / "benchmarks" / "configs" / "mixed15.toml"
         runs = {
             "run-D": ["--method", "D", "--generations", "30", "--set", "n_rovers=6",
                       "--set", "n_req=2"],

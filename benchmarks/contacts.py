@@ -1,6 +1,6 @@
 """How hard are the physical model's contacts? Pass-throughs and overlaps at step ends.
 
-    python experiments/contacts.py [--set FIELD=VALUE ...]
+    python benchmarks/contacts.py [--set FIELD=VALUE ...]
 
 Three cases, each under the given config (default: physics with collisions, the defaults):
 

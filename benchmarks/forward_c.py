@@ -7,7 +7,7 @@ reorder the output layer (W2 read per output as 16-lane blocks, summed by a halv
 checks that the first gives numba's actions bit for bit, and times all three on 60 teams of
 15 rovers (8 inputs, 32 hidden units), ns per rover, ``ROUNDS`` rounds of ``REPS`` calls.
 
-    taskset -c 1 python experiments/forward_c.py
+    taskset -c 1 python benchmarks/forward_c.py
 
 Needs gcc; nothing of it is part of the package.
 """

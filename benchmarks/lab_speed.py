@@ -6,7 +6,7 @@ cppyy 3.5.0 from PyPI builds it on Python 3.11), from a checkout of the lab's co
 
     python3 -m venv venv-lab && venv-lab/bin/pip install cppyy==3.5.0 deap==1.4.1 \\
         numpy==2.1.2 PyYAML==6.0.2 tqdm==4.66.5 pandas matplotlib "setuptools<70"
-    PYTHONPATH=LAB/src venv-lab/bin/python experiments/lab_speed.py LAB/example/results/config.yaml
+    PYTHONPATH=LAB/src venv-lab/bin/python benchmarks/lab_speed.py LAB/example/results/config.yaml
 
 It times the lab's second generation in a process of its own, three times (the lab's code
 under cppyy 3.5 crashes many processes that build many envs, as issue 43 says: it starts
