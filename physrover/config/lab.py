@@ -34,8 +34,9 @@ The conventions, each the lab's code as it runs (``src/influence/custom_env.py``
   valued by distance (``value_by = "distance"``, the lab's only POI), ``coupling`` its
   ``n_req``, ``constraint`` final (the default) or sequential (``score_at`` "final" or
   "any"), captured within ``capture_radius`` or by sight (``capture_by``), gone from
-  sight once captured under ``disappear_bool`` (``disappear = "captured"``, where a rover
-  senses by SmartLidar and the POI is hidden: elsewhere the lab's flag does nothing); a
+  sight once a rover that senses by SmartLidar comes within 1.0 under ``disappear_bool``
+  (``disappear = "visited"``, ``visited_by`` those rovers' classes, on a hidden POI:
+  elsewhere the lab's flag does nothing); a
   hidden POI's ``subtype`` sensed only by the UAVs that list it in their
   ``observable_subtypes`` (its ``visible_to``; a rover POI's subtype is never read, as in
   the lab's SmartLidar); fixed
@@ -242,12 +243,12 @@ def _pois(lab: dict, classes: list[dict]) -> tuple[list[dict[str, Any]], list[tu
     tables, positions = [], []
     pois = lab["env"]["pois"]
     # the lab's disappear_bool acts only in a rover's SmartLidar scan, on hidden POIs
-    smart = any(c["captures"] and not c["sensor"]["blind"] for c in classes)
+    smart = [c["name"] for c in classes if c["captures"] and not c["sensor"]["blind"]]
     for kind in ("rover_pois", "hidden_pois"):
         for i, poi in enumerate(pois.get(kind) or []):
             where = f"env.pois.{kind}[{i}]"
             subtype = (poi.get("subtype") or "") if kind == "hidden_pois" else ""
-            live = smart and kind == "hidden_pois"
+            live = bool(smart) and kind == "hidden_pois"
             constraint = poi.get("constraint", "final")
             if constraint not in LAB_CONSTRAINTS:
                 raise ConfigError(f"{where}.constraint", f"final or sequential, got "
@@ -256,9 +257,9 @@ def _pois(lab: dict, classes: list[dict]) -> tuple[list[dict[str, Any]], list[tu
             table = {"value": float(get(poi, "value", where)),
                      "n_req": int(get(poi, "coupling", where)), "value_by": "distance",
                      "score_at": LAB_CONSTRAINTS[constraint],
-                     "sense_radius": float(get(poi, "observation_radius", where)),
-                     "disappear": "captured" if live and poi.get("disappear_bool")
-                     else "never"}  # fmt: skip
+                     "sense_radius": float(get(poi, "observation_radius", where))}  # fmt: skip
+            if live and poi.get("disappear_bool"):
+                table.update(disappear="visited", visit_radius=1.0, visited_by=smart)
             if radius == -1.0:
                 table["capture_by"] = "sight"
             else:

@@ -76,9 +76,6 @@ def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
     if any(p.sense_radius < max(radii) for p in domain.pois):
         notes.append("a POI's observation radius also limits who senses it here (the lab: "
                      "only who captures it by sight)")  # fmt: skip
-    if any(p.disappear != "never" for p in domain.pois):
-        notes.append("disappear_bool: a POI is gone from sight the step after its capture "
-                     "here; the lab's once a rover's SmartLidar is within 1.0 of it")  # fmt: skip
     if lab["env"]["pois"].get("hidden_pois") and not any(
         not a.captures and a.sensor.kind == "lidar" for a in domain.agents
     ):

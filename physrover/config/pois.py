@@ -33,7 +33,11 @@ With them, each table is one POI, in order, and may set:
 - what senses it (scoring is unchanged; the lidar applies these, the density sensor
   cannot): ``visible_to``, the agent classes that sense it (the lab's hidden POIs are
   visible to its UAVs only), ``sense_radius``, the distance within which it is sensed, and
-  ``disappear = "captured"``, no longer sensed once captured (the earlier lab domain's).
+  ``disappear``: ``"captured"``, no longer sensed once captured (from the step after), or
+  ``"visited"``, no longer sensed once an agent of the classes ``visited_by`` (default:
+  every class that captures) comes within ``visit_radius`` (default 1.0) of it and within
+  its own sensor's radius (from that state on: the lab's ``disappear_bool``, which a
+  rover's SmartLidar scan sets before the UAVs scan; :mod:`physrover.domain.sensing.vanish`).
 
 The scenario still places the POIs; ``poi_values`` is derived from the tables (values may
 repeat there). The compiled scoring is :func:`physrover.domain.scoring.captures.score_team`.
@@ -52,7 +56,7 @@ from physrover.config.base import ConfigBase, check, check_choice, coerce_tables
 SCORE_AT = ("any", "final")
 CAPTURE_BY = ("radius", "sight", "radius-or-sight")
 VALUE_BY = ("capture", "distance")
-DISAPPEAR = ("never", "captured")
+DISAPPEAR = ("never", "captured", "visited")
 SPAWNS = ("scenario", "fixed", "box", "circle")
 """Where a POI starts: the scenario's place for it, or a rule of its own (as an agent's)."""
 
@@ -85,7 +89,12 @@ class PoiRule(ConfigBase):
     sense_radius: float = math.inf
     """It is sensed only within this distance, world units (and the sensor's radius)."""
     disappear: str = "never"
-    """"never", or "captured": no longer sensed once captured (scoring is unchanged)."""
+    """"never", "captured" (no longer sensed once captured) or "visited" (once an agent of
+    ``visited_by`` came within ``visit_radius``); scoring is unchanged."""
+    visit_radius: float = 1.0
+    """"visited": within this distance, world units (the lab's hard-coded 1.0)."""
+    visited_by: tuple[str, ...] = ()
+    """"visited": the classes whose agents mark it (empty: every class that captures)."""
     require: Any = dataclasses.field(default_factory=dict)
     """``{class = count}``: a typed coupling, at least ``count`` agents of each named class
     at one step (instead of ``n_req``); only those classes' agents count for it."""
@@ -120,6 +129,11 @@ class PoiRule(ConfigBase):
               'is not used under capture_by = "sight" (leave it 0)')  # fmt: skip
         check(self.sense_radius > 0, "sense_radius", f"must be > 0, got {self.sense_radius}")
         check_choice(self.disappear, DISAPPEAR, "disappear")
+        check(0 < self.visit_radius < math.inf, "visit_radius",
+              f"must be > 0 and finite, got {self.visit_radius}")  # fmt: skip
+        for field in ("visit_radius", "visited_by"):
+            check(self.disappear == "visited" or self.is_default(field), field,
+                  'is read only under disappear = "visited"')  # fmt: skip
         require = self.require
         check(isinstance(require, Mapping), "require",
               f"expected a table {{class = count}}, got {require!r}")  # fmt: skip
@@ -177,10 +191,11 @@ def check_pois(domain) -> None:
                   f"{', '.join(names)}")  # fmt: skip
             check(n <= sizes[name], f"pois[{k}].require.{name}",
                   f"must be in [1, {sizes[name]}] (the class's count), got {n}")  # fmt: skip
-        for name in rule.visible_to:
-            check(name in names, f"pois[{k}].visible_to",
-                  f"unknown class {name!r}{did_you_mean(name, names)}; classes: "
-                  f"{', '.join(names)}")  # fmt: skip
+        for field in ("visible_to", "visited_by"):
+            for name in getattr(rule, field):
+                check(name in names, f"pois[{k}].{field}",
+                      f"unknown class {name!r}{did_you_mean(name, names)}; classes: "
+                      f"{', '.join(names)}")  # fmt: skip
     if any(rule.hides for rule in pois):
         sensors = [(f"agents[{c}].sensor", a.sensor or domain.sensor)
                    for c, a in enumerate(domain.agents)] or [("sensor", domain.sensor)]  # fmt: skip
@@ -202,6 +217,8 @@ def pois_table(pois: tuple[PoiRule, ...]) -> list[dict]:
         if table["spawn"] == "scenario":  # written only where given, as before they existed
             for name in ("spawn", "spawn_positions", "spawn_box", "spawn_circle"):
                 del table[name]
+        if table["disappear"] != "visited":
+            del table["visit_radius"], table["visited_by"]
     return tables
 
 

@@ -125,7 +125,7 @@ class RunConfig:
         """A coupling curriculum (``[learn] curriculum_start``) fits the domain: it starts
         below the domain's coupling, and its evaluation at the domain's coupling rescores
         the same episodes (:mod:`physrover.learn.curriculum`), so no POI may vanish once
-        captured or score by a rule."""
+        captured (its sight would depend on the coupling) or score by a rule."""
         start = self.learn.curriculum_start
         if start == 0:
             return
@@ -133,7 +133,7 @@ class RunConfig:
         check(start < top, "curriculum_start",
               f"must be below the domain's coupling (n_req {top}), got {start}")  # fmt: skip
         for k, poi in enumerate(self.domain.pois):
-            counted = poi.disappear == "never" and not poi.scored_by_rule
+            counted = poi.disappear != "captured" and not poi.scored_by_rule
             check(counted, "curriculum_start", f"pois[{k}] vanishes once captured or scores "
                   "by a rule (after, score_at, require, value_by); the curriculum needs POIs "
                   "captured by a count of agents in range")  # fmt: skip

@@ -24,6 +24,8 @@ Parts and their kernels:
   count toward couplings where a class does not capture (None: every agent counts);
 - ``failures``: when each agent fails (:class:`~physrover.domain.agents.failures.Failures`,
   drawn at every reset), None where no agent can fail;
+- ``vanish``: the POIs' sight rules (:class:`~physrover.domain.sensing.vanish.Vanishing`),
+  None where every POI stays in sight;
 - the coupling ``n_req`` (K,), ``d_cap^2`` and the last scored step ``t_final``.
 
 What has no kernel (a user's sensor, a subclass of a built-in part that may override its
@@ -48,6 +50,7 @@ from physrover.domain.sensing.classes import ClassSensing
 from physrover.domain.sensing.density import Density
 from physrover.domain.sensing.lidar import Lidar
 from physrover.domain.sensing.sensor import agent_obs_sizes, sensor_size
+from physrover.domain.sensing.vanish import Vanishing
 
 
 class Motion(NamedTuple):
@@ -77,6 +80,8 @@ class StepPlan(NamedTuple):
     """The last scored step."""
     failures: Any = None
     """:class:`~physrover.domain.agents.failures.Failures`, or None (no agent fails)."""
+    vanish: Any = None
+    """:class:`~physrover.domain.sensing.vanish.Vanishing`, or None (POIs stay in sight)."""
 
 
 @dataclass(frozen=True)
@@ -150,7 +155,8 @@ def build_plan(config, dynamics, n_teams: int) -> Plan:
     counted = None if rules is not None or counted.all() else counted
     step = StepPlan(motion, density, classes, rules, counted,
                     np.array(config.n_req_per_poi, dtype=np.int64), float(config.d_cap) ** 2,
-                    int(last_scored_step(config)), Failures.build(config, n_teams))  # fmt: skip
+                    int(last_scored_step(config)), Failures.build(config, n_teams),
+                    Vanishing.build(config))  # fmt: skip
     return Plan(step, max(agent_obs_sizes(config)), tuple(python_sensors))
 
 

@@ -9,7 +9,9 @@ arrays natively) instead of a dozen positional arrays. Each group of arrays has 
 - the scenario writes the POIs (``poi_positions``, ``poi_values``) at reset, and the
   obstacles (``obstacles``) once;
 - scoring (:func:`physrover.domain.scoring.captures.score_team`, Eqs. 11-13) writes ``poi_counts``,
-  ``in_range``, ``captured``, ``captured_without``, ``capture_step`` and ``score``.
+  ``in_range``, ``captured``, ``captured_without``, ``capture_step`` and ``score``;
+- the POIs' sight rules (:func:`physrover.domain.sensing.vanish.vanish_team`) write
+  ``gone``.
 
 The arrays are allocated once per world and updated in place; readers copy what they keep.
 """
@@ -59,6 +61,8 @@ class WorldState(NamedTuple):
     """(E, K) int64: the first step at which each POI was captured, -1 if none yet."""
     score: np.ndarray
     """(E,) float64: G so far (Eq. 11)."""
+    gone: np.ndarray
+    """(E, K) bool: out of every agent's sight from now on (``[[pois]] disappear``)."""
 
     @classmethod
     def zeros(
@@ -83,6 +87,7 @@ class WorldState(NamedTuple):
             captured_without=np.zeros((e, r, k), dtype=bool),
             capture_step=np.zeros((e, k), dtype=np.int64),
             score=np.zeros(e),
+            gone=np.zeros((e, k), dtype=bool),
         )
         start_episode(state)
         return state
@@ -99,6 +104,7 @@ def start_episode(state: WorldState, teams: np.ndarray | None = None) -> None:
     state.captured_without[teams] = False
     state.capture_step[teams] = -1
     state.score[teams] = 0.0
+    state.gone[teams] = False
 
 
 __all__ = ["WorldState", "start_episode"]

@@ -17,8 +17,10 @@ A team's step t (from state t - 1 to state t), in this order:
 1. the commands (R, 2) are clipped to [-1, 1] and recorded, and the agents move
    (:func:`~physrover.domain.motion.ideal.move_team`; the classes' gates are judged from
    the positions before anyone moves);
-2. every agent senses the new state (the paper's density sensor, or each class's lidar);
-   a failed agent's observation is 0 (:mod:`physrover.domain.agents.failures`);
+2. the POIs that leave sight at the new state are marked
+   (:mod:`physrover.domain.sensing.vanish`), then every agent senses it (the paper's
+   density sensor, or each class's lidar); a failed agent's observation is 0
+   (:mod:`physrover.domain.agents.failures`);
 3. if state t is scored (t <= ``t_final``), captures, G and D's counterfactuals
    (:func:`~physrover.domain.scoring.captures.score_team`, under the POIs' rules);
 4. the new positions and headings are recorded.
@@ -41,6 +43,7 @@ from physrover.domain.motion.ideal import all_commands_ok, commands_ok, move_tea
 from physrover.domain.scoring.captures import score_team
 from physrover.domain.sensing.classes import sense_classes, sensing_scratch
 from physrover.domain.sensing.density import sense_scratch, sense_team
+from physrover.domain.sensing.vanish import vanish_team
 from physrover.domain.state import WorldState
 
 
@@ -135,6 +138,7 @@ def step_team(e, t, commands, plan, state, actions, obs, positions, headings, wi
     if move:  # False at reset: state 0 is sensed, scored and recorded, not moved into
         _move(e, t, commands, state, actions, with_headings, plan.motion, scratch.free,
               plan.failures)  # fmt: skip
+    vanish_team(plan.vanish, e, t, state, plan.failures)
     _sense(e, state, obs, plan.density, plan.classes, scratch)
     silence(plan.failures, e, t, obs)
     if t <= plan.t_final:

@@ -89,8 +89,6 @@ class ClassSensing(NamedTuple):
     """(C, K) bool: the POIs class c senses at all."""
     poi_radius_sq: np.ndarray
     """(C, K) float64: within what squared distance."""
-    disappear: np.ndarray
-    """(C, K) bool: which vanish once captured."""
     n_channels: np.ndarray
     """(C,) int64: the class's observation size."""
     local: np.ndarray
@@ -136,7 +134,7 @@ class ClassSensing(NamedTuple):
                 "empty": lidar.empty, "world": lidar.bearing == "world",
                 "agent_base": view.agent_base, "poi_base": view.poi_base,
                 "visible": view.visible, "poi_radius_sq": view.poi_radius_sq,
-                "disappear": view.disappear, "n_channels": sensor_size(sensor, config),
+                "n_channels": sensor_size(sensor, config),
                 "local": (n >= LIDAR_GRID_MIN_POINTS and math.isfinite(lidar.radius)
                           and kind is not AgentDistances),
                 "distances": kind is AgentDistances,
@@ -158,7 +156,6 @@ class ClassSensing(NamedTuple):
             "compiled": bool,
             "world": bool,
             "visible": bool,
-            "disappear": bool,
             "local": bool,
             "distances": bool,
             "targets": bool,
@@ -220,7 +217,7 @@ def _sense_agent(e, i, c, state, sensing, candidates, n_candidates, acc, count, 
     lidar_agent(e, i, state, sensing.d_min_sq, sensing.n_sectors[c], sensing.radius_sq[c],
                 sensing.compose[c], sensing.measure[c], sensing.empty[c], sensing.world[c],
                 sensing.agent_base[c], sensing.poi_base[c], sensing.visible[c],
-                sensing.poi_radius_sq[c], sensing.disappear[c], sensing.n_channels[c],
+                sensing.poi_radius_sq[c], sensing.n_channels[c],
                 candidates, n_candidates, acc, count, obs)  # fmt: skip
 
 

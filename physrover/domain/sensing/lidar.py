@@ -30,9 +30,9 @@ density sensor's convention); ``"world"`` from the +x axis whatever the heading,
 
 ``channels = "by-class"`` gives each agent class (``[[agents]]``) its own block of
 sectors, then the POIs' (the lab's SmartLidar: ``[rovers | UAVs | POIs]``). A class senses
-only the POIs visible to it (``[[pois]] visible_to``), each within its ``sense_radius``,
-and none that ``disappear`` once captured (from the step after the capture): what a class
-senses is its :class:`SensingView`.
+only the POIs visible to it (``[[pois]] visible_to``), each within its ``sense_radius``:
+what a class senses is its :class:`SensingView`. No agent senses a POI that has left
+sight (``[[pois]] disappear``, ``WorldState.gone``: :mod:`physrover.domain.sensing.vanish`).
 
 Terms are added rovers by index, then POIs, in float64, as the density sensor adds them,
 so ``lidar`` with ``compose = "density"``, ``bearing = "heading"``, ``empty = 0`` and the
@@ -129,12 +129,10 @@ class Lidar(Sensor):
         name = class_names(domain)[c]
         pois = domain.pois
         if not pois:
-            return SensingView(agent_base, poi_base, np.ones(k, bool), np.full(k, math.inf),
-                               np.zeros(k, bool))  # fmt: skip
+            return SensingView(agent_base, poi_base, np.ones(k, bool), np.full(k, math.inf))
         visible = np.array([not p.visible_to or name in p.visible_to for p in pois])
         radius_sq = np.array([p.sense_radius**2 for p in pois], dtype=np.float64)
-        disappear = np.array([p.disappear == "captured" for p in pois])
-        return SensingView(agent_base, poi_base, visible, radius_sq, disappear)
+        return SensingView(agent_base, poi_base, visible, radius_sq)
 
     def observe(self, state, d_min: float, out: np.ndarray) -> None:
         """Every agent of ``state`` through this lidar, seeing everything (no classes, no
@@ -159,8 +157,8 @@ class Lidar(Sensor):
 
 class SensingView(NamedTuple):
     """What the agents of one class sense (:meth:`Lidar.observe_class`): each agent's
-    channel block, the POIs' block, which POIs the class sees, within what distance of
-    each, and which vanish once captured."""
+    channel block, the POIs' block, which POIs the class sees and within what distance of
+    each."""
 
     agent_base: np.ndarray
     """(R,) int64: the first channel of agent j's terms."""
@@ -170,14 +168,12 @@ class SensingView(NamedTuple):
     """(K,) bool: the POIs this class senses at all (``visible_to``)."""
     poi_radius_sq: np.ndarray
     """(K,) float64: a POI is sensed only within this squared distance (``sense_radius``)."""
-    disappear: np.ndarray
-    """(K,) bool: the POI is no longer sensed once captured (``disappear``)."""
 
     @classmethod
     def everything(cls, n_agents: int, n_pois: int, n_sectors: int) -> SensingView:
-        """Every agent in one block, every POI visible at any distance, none vanishing."""
+        """Every agent in one block, every POI visible at any distance."""
         return cls(np.zeros(n_agents, dtype=np.int64), n_sectors, np.ones(n_pois, bool),
-                   np.full(n_pois, math.inf), np.zeros(n_pois, bool))  # fmt: skip
+                   np.full(n_pois, math.inf))  # fmt: skip
 
 
 @jit_inline
@@ -203,15 +199,16 @@ def _add(acc, count, q, num, dist_sq, d_min_sq, radius_sq, measure, compose):
 
 @jit_inline
 def lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world,
-                agent_base, poi_base, visible, poi_radius_sq, disappear, n_channels,
-                candidates, n_candidates, acc, count, obs):  # fmt: skip
+                agent_base, poi_base, visible, poi_radius_sq, n_channels, candidates,
+                n_candidates, acc, count, obs):  # fmt: skip
     """The lidar reading of agent i of team e into ``obs[e, i, :n_channels]``: the agents
     ``candidates[:n_candidates]`` (ascending: those a grid found near; None: every agent,
     ``n_candidates`` of them, compiled without the indirection),
     then every POI, each within its distance adding its term to its channel; ``compose``
     and ``measure`` index :data:`COMPOSE` and :data:`MEASURES`, ``radius_sq`` is inf for no
     radius, ``world`` the world-frame bearing (module docstring); ``agent_base`` to
-    ``disappear`` a :class:`SensingView`; ``acc``, ``count`` (>= n_channels) scratch."""
+    ``poi_radius_sq`` a :class:`SensingView`; a POI ``state.gone`` is not sensed; ``acc``,
+    ``count`` (>= n_channels) scratch."""
     positions = state.rover_positions
     poi_positions, poi_values = state.poi_positions, state.poi_values
     c, s = state.cos_h[e, i], state.sin_h[e, i]
@@ -231,7 +228,7 @@ def lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, e
             q = agent_base[j] + sector(c * dx + s * dy, c * dy - s * dx, n_sectors)
         _add(acc, count, q, 1.0, dist_sq, d_min_sq, radius_sq, measure, compose)
     for k in range(poi_positions.shape[1]):  # then the POIs
-        if not visible[k] or (disappear[k] and state.captured[e, k]):
+        if not visible[k] or state.gone[e, k]:
             continue
         dx, dy = poi_positions[e, k, 0] - xi, poi_positions[e, k, 1] - yi
         dist_sq = dx * dx + dy * dy
@@ -253,8 +250,8 @@ def lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, e
 
 @jit
 def lidar_rows(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, world,
-               agent_base, poi_base, visible, poi_radius_sq, disappear, first, stop,
-               n_channels, obs):  # fmt: skip
+               agent_base, poi_base, visible, poi_radius_sq, first, stop, n_channels,
+               obs):  # fmt: skip
     """:func:`lidar_agent` for agents ``first`` to ``stop - 1`` of every team of ``state``,
     each seeing every agent: ``obs[:, first:stop, :n_channels]``."""
     n_teams, n_rovers = state.cos_h.shape
@@ -263,8 +260,8 @@ def lidar_rows(state, d_min_sq, n_sectors, radius_sq, compose, measure, empty, w
     for e in range(n_teams):
         for i in range(first, stop):
             lidar_agent(e, i, state, d_min_sq, n_sectors, radius_sq, compose, measure, empty,
-                        world, agent_base, poi_base, visible, poi_radius_sq, disappear,
-                        n_channels, None, n_rovers, acc, count, obs)  # fmt: skip
+                        world, agent_base, poi_base, visible, poi_radius_sq, n_channels,
+                        None, n_rovers, acc, count, obs)  # fmt: skip
 
 
 __all__ = ["BEARINGS", "CHANNELS", "COMPOSE", "MEASURES", "Lidar", "SensingView", "lidar_agent",
