@@ -36,9 +36,6 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
     if rollouts != 1:
         raise ConfigError("ccea.evaluation.multi_rollout.num_rollouts", "physrover plays one "
                           f"episode per team and generation here, got {rollouts}")  # fmt: skip
-    if not ccea.get("evaluation", {}).get("test_adhoc_team_switch", False):
-        notes.append("learning curve: the champion team (each population's best) here; the "
-                     "lab's default logs its best team by G")  # fmt: skip
     return {"method": "D", "generations": int(get(ccea, "num_generations", "ccea")),
             "population": int(get(get(ccea, "populations", "ccea"), "agent_population_size",
                                    "ccea.populations")),
@@ -52,7 +49,9 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
             "n_team_elites": int(get(selection, "n_team_elites", "ccea.selection")),
             "n_team_fitness_elites": int(selection.get(
                 "n_individual_elites_based_on_team_fitness", 0)),
-            "eval_episodes": 1}  # fmt: skip
+            "eval_episodes": 1,  # the lab's num_rollouts (1) fresh rollouts of its test team
+            "eval_team": "champion" if ccea.get("evaluation", {}).get(
+                "test_adhoc_team_switch", False) else "best-team"}  # fmt: skip
 
 
 def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
@@ -61,8 +60,9 @@ def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
     "D"`` (a policy's fitness is its feedback in one episode: the lab's one rollout), each
     class's own feedback, Gaussian mutation, the lab's elites selection and team elites,
     random, softmax (temperature 1) or ranked (``fixed_teams``) teams, one evaluation
-    episode; ``num_trials`` trials are seeds (``physrover sweep``). Refused: more hidden
-    layers, a mutation mean, several rollouts per team."""
+    episode of its test team (the best team by G, or with ``test_adhoc_team_switch`` the
+    champion: ``eval_team``); ``num_trials`` trials are seeds (``physrover sweep``).
+    Refused: more hidden layers, a mutation mean, several rollouts per team."""
     notes: list[str] = []
     domain = lab_domain(lab)
     learn = _learn(lab["ccea"], notes)

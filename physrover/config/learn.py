@@ -81,7 +81,12 @@ class LearnConfig(ConfigBase):
     """Under ``selection = "elites"``: best teams by G kept whole and replayed each
     generation; their members join the selection pool (0: none)."""
     eval_episodes: int = 10
-    """Fresh episodes of the champion team per generation (the learning curve)."""
+    """Fresh episodes of the evaluated team per generation (the learning curve)."""
+    eval_team: str = "champion"
+    """The team the learning curve plays: "champion" (every population's best policy by
+    fitness: the paper's, and the lab's ``test_adhoc_team_switch``) or "best-team" (the
+    previous generation's team with the highest G, as it played: the lab's default test
+    team; :mod:`physrover.learn.eval_team`)."""
     curriculum_start: int = 0
     """Beyond the paper: a coupling curriculum (:mod:`physrover.learn.curriculum`). 0: off,
     every episode at the domain's n_req (the paper's); c >= 1: the training episodes are
@@ -151,6 +156,7 @@ class LearnConfig(ConfigBase):
         check_choice(self.weight_init, ("fan-in", "uniform"), "weight_init")
         check_choice(self.team_formation, ("random", "softmax", "rank"), "team_formation")
         check_choice(self.selection, ("tournament", "elites"), "selection")
+        check_choice(self.eval_team, ("champion", "best-team"), "eval_team")
         check(
             self.softmax_temperature > 0 and math.isfinite(self.softmax_temperature),
             "softmax_temperature",

@@ -8,7 +8,8 @@
 - :mod:`~physrover.core.plugins`: ``--import`` of a researcher's own parts;
 - :mod:`~physrover.core.stats`: the statistics every report uses (Student-t intervals,
   permutation tests, Holm, rank correlation);
-- :mod:`~physrover.core.deprecation`: old module paths that still import, with a warning.
+- :mod:`~physrover.core.deprecation`: old module paths that still import, with a warning;
+- :mod:`~physrover.core.trees`: nested state as flat ``{"a/0/b": leaf}`` maps (checkpoints).
 
 May import: the standard library and third-party packages only, never another wing.
 """

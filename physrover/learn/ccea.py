@@ -39,11 +39,13 @@ import numpy as np
 
 from physrover.config import RunConfig
 from physrover.core.compiled import dims
+from physrover.core.trees import flatten, unflatten
 from physrover.domain.scoring.credit import team_credit
 from physrover.domain.scoring.rules import PoiRules
 from physrover.envs.gymnasium_env import RoverVectorEnv, generator_from_state, team_spaces
 from physrover.learn.classes import team_layout
 from physrover.learn.curriculum import CouplingCurriculum, score_at_coupling
+from physrover.learn.eval_team import BestTeam
 from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.fitness import Problem, make_method
 from physrover.learn.kernels import gather_trajectories
@@ -58,8 +60,9 @@ class GenerationStats:
     generation: int
     """The generation's number, counted from 1."""
     eval_G: float
-    """Mean G of the champion team (chosen by the previous generation) on ``eval_episodes``
-    fresh episodes: the learning curve."""
+    """Mean G of the champion team (chosen by the previous generation; or the previous
+    generation's best team, ``eval_team``) on ``eval_episodes`` fresh episodes: the learning
+    curve."""
     train_G_mean: float
     """Mean G over this generation's training episodes (the population's teams)."""
     fitness_mean: float
@@ -94,6 +97,7 @@ class CCEA:
         if cfg.selection == "elites" and cfg.n_team_elites > 0:
             self.team_elites = TeamElites(cfg.n_team_elites, self.genomes, self.team_rng)
         self.n_elite_teams = 0 if self.team_elites is None else self.team_elites.n
+        self.best_team = BestTeam() if cfg.eval_team == "best-team" else None
         problem = Problem(self.n_rovers, d.steps, n_obs, n_act)
         self.method = make_method(config, problem, critic_init)
         self.credit = team_credit(cfg.feedback, d)  # each agent's immediate feedback
@@ -138,17 +142,31 @@ class CCEA:
             table = np.concatenate([table, extra], axis=1)
         if self.team_elites is not None:
             table = np.concatenate([table, self.team_elites.table()], axis=1)
+        if self._plays_best_team():
+            table = np.concatenate([table, self.best_team.genomes[:, None]], axis=1)
         policy = self.layout.prepare(table[rovers[None, :], genome_index])  # (E, R, P) genomes
         world = self.env.play_episode(policy, headings=False)  # the CCEA reads no angle
         return world.G.copy(), np.array(self.credit(world), dtype=np.float64)
 
     def _elite_index(self) -> np.ndarray:
         """(n_elite_teams, R) rollout indices of the elite teams: after the population and
-        the method's extra genomes."""
+        the method's extra genomes (then the best team, :meth:`_evaluated_index`)."""
         extra = self.method.extra_genomes()
         base = self.k + (0 if extra is None else extra.shape[1])
         rows = base + np.arange(self.n_elite_teams)
         return np.broadcast_to(rows[:, None], (self.n_elite_teams, self.n_rovers))
+
+    def _plays_best_team(self) -> bool:
+        return self.best_team is not None and self.best_team.genomes is not None
+
+    def _evaluated_index(self) -> np.ndarray:
+        """(eval_episodes, R) rollout indices of the team the learning curve plays: the
+        champion, or the best team (``eval_team``), after the elite teams."""
+        if not self._plays_best_team():
+            return np.broadcast_to(self.champion, (self.config.learn.eval_episodes, self.n_rovers))
+        extra = self.method.extra_genomes()
+        row = self.k + (0 if extra is None else extra.shape[1]) + self.n_elite_teams
+        return np.full((self.config.learn.eval_episodes, self.n_rovers), row)
 
     def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:
         """(rounds, k, R) values by team -> (rounds, R, k) by policy; ``where[q, r, p]`` is
@@ -186,8 +204,8 @@ class CCEA:
         else:
             order = self.method.plan(self.team_rng, R, k)
         team_index = order.transpose(0, 2, 1).reshape(rounds * k, R)
-        champions = np.broadcast_to(self.champion, (cfg.eval_episodes, R))
-        G, credit = self.rollout(np.concatenate([team_index, self._elite_index(), champions]))
+        evaluated = self._evaluated_index()
+        G, credit = self.rollout(np.concatenate([team_index, self._elite_index(), evaluated]))
         eval_G = float(G[self.n_played :].mean())
         train_n_req = 0
         if self.curriculum is not None:
@@ -210,8 +228,12 @@ class CCEA:
             fitness = self.method.assign(feedback, G_by_policy, trajectories)
         t_feedback = time.perf_counter()
 
-        # The champion evaluated in this batch, before evolution can overwrite it.
-        self.method.observe_champion(self.genomes[np.arange(R), self.champion], eval_G)
+        # The team evaluated in this batch, before evolution can overwrite it.
+        self.method.observe_champion(self.champion_genomes(), eval_G)
+        if self.best_team is not None:  # the next generation's evaluated team
+            elites = None if self.team_elites is None else self.team_elites.genomes
+            self.best_team.pick(G, self.n_train, self.n_elite_teams, self.genomes, team_index,
+                                elites)  # fmt: skip
         if cfg.selection == "elites":
             self._evolve_elites(fitness, G, team_index, G_by_policy.mean(axis=0))
         else:
@@ -296,7 +318,10 @@ class CCEA:
         self.champion = np.zeros(self.n_rovers, dtype=np.int64)
 
     def champion_genomes(self) -> np.ndarray:
-        """(R, P) genomes of the current champion team."""
+        """(R, P) genomes of the team the learning curve plays next: the current champion
+        (or the last best team, ``eval_team = "best-team"``)."""
+        if self._plays_best_team():
+            return self.best_team.genomes.copy()
         return self.genomes[np.arange(self.n_rovers), self.champion].copy()
 
     # -- checkpoints -------------------------------------------------------------------------
@@ -308,8 +333,10 @@ class CCEA:
             arrays["carried"] = self.carried
         if self.team_elites is not None:
             arrays.update(self.team_elites.state())
+        if self.best_team is not None:
+            arrays.update(self.best_team.state())
         method_meta = {}
-        for key, value in _flatten(self.method.state()).items():
+        for key, value in flatten(self.method.state()).items():
             if isinstance(value, np.ndarray):
                 arrays[f"method/{key}"] = value
             else:
@@ -336,9 +363,11 @@ class CCEA:
             self.carried = np.array(arrays["carried"])
         if self.team_elites is not None:
             self.team_elites.load(arrays)
+        if self.best_team is not None:
+            self.best_team.load(arrays)
         flat = {k[len("method/") :]: v for k, v in arrays.items() if k.startswith("method/")}
         flat.update(meta["method"])
-        self.method.load(_unflatten(flat))
+        self.method.load(unflatten(flat))
         self.generation = int(meta["generation"])
         self.wall_seconds = float(meta["wall_seconds"])
         for name, state in meta["rng"].items():
@@ -359,36 +388,3 @@ def stats_header(curriculum: bool = False) -> list[str]:
 def stats_row(stats: GenerationStats, header: list[str]) -> dict:
     """A metrics.csv row of ``header``'s columns."""
     return {name: getattr(stats, name) for name in header}
-
-
-def _flatten(tree, prefix: str = "") -> dict:
-    """Nested dicts/lists -> {"a/0/b": leaf}."""
-    if isinstance(tree, dict):
-        items = tree.items()
-    elif isinstance(tree, list):
-        items = ((str(i), v) for i, v in enumerate(tree))
-    else:
-        return {prefix: tree}
-    out = {}
-    for key, value in items:
-        out.update(_flatten(value, f"{prefix}/{key}" if prefix else str(key)))
-    return out
-
-
-def _unflatten(flat: dict):
-    root: dict = {}
-    for key, value in flat.items():
-        node = root
-        *parents, leaf = key.split("/")
-        for part in parents:
-            node = node.setdefault(part, {})
-        node[leaf] = value
-
-    def listify(node):
-        if not isinstance(node, dict):
-            return node
-        if node and all(k.isdigit() for k in node):
-            return [listify(node[str(i)]) for i in range(len(node))]
-        return {k: listify(v) for k, v in node.items()}
-
-    return listify(root)
