@@ -133,8 +133,8 @@ def test_pois_that_spawn_by_rules_of_their_own_take_them_as_pois_spawn():
      "ccea.network.hidden_layers: physrover's policies have one hidden layer"),
     ("ccea.team_formation", {"type": "greedy_teams"},
      "ccea.team_formation.type: random_teams, softmax_teams or fixed_teams, got"),
-    ("ccea.evaluation.multi_rollout.num_rollouts", 3,
-     "ccea.evaluation.multi_rollout.num_rollouts: physrover plays one episode"),
+    ("ccea.evaluation.multi_rollout.num_rollouts", 0,
+     "ccea.evaluation.multi_rollout.num_rollouts: must be >= 1, got 0"),
 ])  # fmt: skip
 def test_what_physrover_cannot_express_is_refused_in_one_line(path, value, message, tmp_path,
                                                                capsys):  # fmt: skip

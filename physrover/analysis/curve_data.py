@@ -178,12 +178,13 @@ def run_fields(config) -> dict:
 def training_episodes(config) -> int:
     """Training episodes per CCEA generation: the fitness method's rounds x the population
     (k for D, G and the critics; n_samples x k for average and leniency; R x k for the hall
-    of fame). The champion's evaluation episodes are a measurement and do not count."""
+    of fame) x ``rollouts``. The champion's evaluation episodes are a measurement and do not
+    count."""
     from physrover.learn.fitness import Problem, make_method
 
     problem = Problem(config.domain.n_rovers, 1, 1, 1)  # sizes do not change the rounds
     method = make_method(config, problem, np.random.default_rng(0))
-    return method.rounds * config.learn.population
+    return method.rounds * config.learn.population * config.learn.rollouts
 
 
 # ----------------------------------------------------------------------------------------------

@@ -288,8 +288,9 @@ def _scenario(
     spawn``, written into ``pois``; origin (0, 0)), random ones drawn once per generation
     (the lab's harness)."""
     rules = {rule for rule, _ in spawns}
-    if rules == {"fixed"}:
-        return {"kind": "explicit", "poi_positions": [v for _, v in spawns]}, (0.0, 0.0)
+    if rules == {"fixed"}:  # agents' random spawns: drawn once per generation, as the lab's
+        return {"kind": "explicit", "poi_positions": [v for _, v in spawns],
+                "redraw": "generation"}, (0.0, 0.0)  # fmt: skip
     circles = {tuple(v) for rule, v in spawns if rule == "circle"}
     if rules == {"circle"} and len(circles) == 1:
         cx, cy, r = circles.pop()

@@ -33,9 +33,9 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
         raise ConfigError("ccea.team_formation.type", f"random_teams, softmax_teams or "
                           f"fixed_teams, got {formation!r}")  # fmt: skip
     rollouts = int(ccea.get("evaluation", {}).get("multi_rollout", {}).get("num_rollouts", 1))
-    if rollouts != 1:
-        raise ConfigError("ccea.evaluation.multi_rollout.num_rollouts", "physrover plays one "
-                          f"episode per team and generation here, got {rollouts}")  # fmt: skip
+    if rollouts < 1:
+        raise ConfigError("ccea.evaluation.multi_rollout.num_rollouts", f"must be >= 1, got "
+                          f"{rollouts}")  # fmt: skip
     return {"method": "D", "generations": int(get(ccea, "num_generations", "ccea")),
             "population": int(get(get(ccea, "populations", "ccea"), "agent_population_size",
                                    "ccea.populations")),
@@ -49,7 +49,8 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
             "n_team_elites": int(get(selection, "n_team_elites", "ccea.selection")),
             "n_team_fitness_elites": int(selection.get(
                 "n_individual_elites_based_on_team_fitness", 0)),
-            "eval_episodes": 1,  # the lab's num_rollouts (1) fresh rollouts of its test team
+            "rollouts": rollouts,
+            "eval_episodes": rollouts,  # the lab's test team on num_rollouts fresh seeds
             "eval_team": "champion" if ccea.get("evaluation", {}).get(
                 "test_adhoc_team_switch", False) else "best-team"}  # fmt: skip
 
@@ -57,12 +58,13 @@ def _learn(ccea: dict, notes: list[str]) -> dict[str, Any]:
 def lab_run(lab: dict) -> tuple[RunConfig, list[str]]:
     """The :class:`~physrover.config.RunConfig` of a whole lab config (``env`` and
     ``ccea``), and notes on what physrover does otherwise. The CCEA: ``[learn] method =
-    "D"`` (a policy's fitness is its feedback in one episode: the lab's one rollout), each
+    "D"`` (a policy's fitness is its feedback, the mean over the lab's ``num_rollouts``
+    episodes on starts shared by every team: ``rollouts``), each
     class's own feedback, Gaussian mutation, the lab's elites selection and team elites,
-    random, softmax (temperature 1) or ranked (``fixed_teams``) teams, one evaluation
-    episode of its test team (the best team by G, or with ``test_adhoc_team_switch`` the
-    champion: ``eval_team``); ``num_trials`` trials are seeds (``physrover sweep``).
-    Refused: more hidden layers, a mutation mean, several rollouts per team."""
+    random, softmax (temperature 1) or ranked (``fixed_teams``) teams, its test team (the
+    best team by G, or with ``test_adhoc_team_switch`` the champion: ``eval_team``) on
+    ``num_rollouts`` fresh episodes; ``num_trials`` trials are seeds (``physrover sweep``).
+    Refused: more hidden layers, a mutation mean."""
     notes: list[str] = []
     domain = lab_domain(lab)
     learn = _learn(lab["ccea"], notes)

@@ -80,6 +80,11 @@ class LearnConfig(ConfigBase):
     n_team_elites: int = 10
     """Under ``selection = "elites"``: best teams by G kept whole and replayed each
     generation; their members join the selection pool (0: none)."""
+    rollouts: int = 1
+    """Episodes each team plays per generation, its G and every agent's feedback the mean
+    over them (the lab's ``num_rollouts``); under the scenario's ``redraw = "generation"``
+    every team plays the same ``rollouts`` start states (the lab's seeds, shared by all
+    teams of a generation). Methods "D" and "G" only (:mod:`physrover.learn.rollouts`)."""
     eval_episodes: int = 10
     """Fresh episodes of the evaluated team per generation (the learning curve)."""
     eval_team: str = "champion"
@@ -116,7 +121,7 @@ class LearnConfig(ConfigBase):
         check(self.generations >= 1, "generations", f"must be >= 1, got {self.generations}")
         check(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         check(self.population >= 2, "population", f"must be >= 2, got {self.population}")
-        self.check_at_least(1, "hidden", "eval_episodes", "checkpoint_every")
+        self.check_at_least(1, "hidden", "rollouts", "eval_episodes", "checkpoint_every")
         check(
             0.0 <= self.mutation_rate <= 1.0,
             "mutation_rate",
@@ -157,6 +162,8 @@ class LearnConfig(ConfigBase):
         check_choice(self.team_formation, ("random", "softmax", "rank"), "team_formation")
         check_choice(self.selection, ("tournament", "elites"), "selection")
         check_choice(self.eval_team, ("champion", "best-team"), "eval_team")
+        check(self.rollouts == 1 or self.method in ("D", "G"), "rollouts",
+              f'averages one-episode fitness: method "D" or "G", got {self.method!r}')  # fmt: skip
         check(
             self.softmax_temperature > 0 and math.isfinite(self.softmax_temperature),
             "softmax_temperature",

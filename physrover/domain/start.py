@@ -21,7 +21,9 @@ class StartDraws:
     the classes' and the POIs' spawn rules, then shared as the scenario's ``redraw`` mode says
     (:mod:`physrover.domain.scenarios`); and the failing agents' steps, shared the same way.
     ``fresh_teams``: under ``redraw = "generation"``, the last this many teams draw their
-    own (the CCEA's evaluation episodes), the others share team 0's."""
+    own (the CCEA's evaluation episodes), the others share team 0's, or with ``groups`` = n
+    the draws of teams 0 to n - 1 in turn (team e takes team e % n's: the CCEA's
+    ``rollouts``, each team's n episodes on n starts every team shares)."""
 
     def __init__(self, config, n_teams: int):
         self.config, self.n_teams = config, int(n_teams)
@@ -31,7 +33,7 @@ class StartDraws:
         """Under redraw = "generation": how many teams share team 0's start."""
         return self.n_teams - min(fresh_teams, self.n_teams - 1)
 
-    def draw(self, rngs, fresh_teams: int) -> StartState:
+    def draw(self, rngs, fresh_teams: int, groups: int = 1) -> StartState:
         """The start states of this reset of the teams whose generators ``rngs`` are."""
         config, n_rovers = self.config, self.config.n_rovers
         scenario, values = config.scenario, np.asarray(config.poi_values, dtype=float)
@@ -46,13 +48,15 @@ class StartDraws:
                 rng = np.random.default_rng(scenario.layout_seed)
                 fixed = self._spawned(scenario.draw([rng], n_rovers, values), [rng])
                 self._fixed = StartState(*(a[0] for a in fixed))
-            shared, first = self.n_teams, self._fixed
-        else:  # "generation": team 0's draw for every team but the fresh ones
-            shared = self.shared(fresh_teams)
-            first = StartState(*(np.asarray(a)[0] for a in start))
+            out = [np.array(a, dtype=np.float64) for a in start]
+            for arr, row in zip(out, self._fixed, strict=True):
+                arr[:] = row
+            return StartState(*out)
+        # "generation": team e % groups's draw for every team but the fresh ones
+        shared = self.shared(fresh_teams)
         out = [np.array(a, dtype=np.float64) for a in start]
-        for arr, row in zip(out, first, strict=True):
-            arr[:shared] = row
+        for arr in out:
+            arr[:shared] = arr[np.arange(shared) % groups]
         return StartState(*out)
 
     def _spawned(self, start: StartState, rngs) -> StartState:
@@ -67,13 +71,14 @@ class StartDraws:
             spawn_pois(start.poi_positions, config, rngs)
         return start
 
-    def failures(self, rngs, fresh_teams: int) -> np.ndarray:
+    def failures(self, rngs, fresh_teams: int, groups: int = 1) -> np.ndarray:
         """(len(rngs), R) int64: the failure steps of this reset
         (:func:`~physrover.domain.agents.failures.draw_failures`), drawn after the start;
         under redraw = "generation" the teams that share a start share them too."""
         at = draw_failures(self.config, rngs)
         if self.config.scenario.redraw == "generation" and len(rngs) == self.n_teams:
-            at[: self.shared(fresh_teams)] = at[0]
+            shared = self.shared(fresh_teams)
+            at[:shared] = at[np.arange(shared) % groups]
         return at
 
 

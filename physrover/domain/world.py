@@ -95,7 +95,9 @@ class RoverWorld:
         self._bound, self._bound_plan = None, None  # step_teams compiled for the plan
         self.fresh_teams = 0
         """Under the scenario's redraw = "generation", the last this many teams draw their own
-        start states (the CCEA's evaluation episodes); the others share one."""
+        start states (the CCEA's evaluation episodes); the others share one, or
+        ``start_groups`` in turn (:class:`~physrover.domain.start.StartDraws`)."""
+        self.start_groups = 1
         self.starts = StartDraws(config, self.n_teams)
         self.team_t = np.full(self.n_teams, -1, dtype=np.int64)
         """(E,) the steps each team has taken in its episode (-1 before its first reset),
@@ -146,7 +148,7 @@ class RoverWorld:
             )
         rows = slice(None) if teams is None else np.flatnonzero(teams)
         drawing = rngs if teams is None else [rngs[e] for e in rows]
-        start = self.starts.draw(drawing, self.fresh_teams)
+        start = self.starts.draw(drawing, self.fresh_teams, self.start_groups)
         write_start(self.state, rows, start, overrides, self.n_teams)
         if teams is None:
             self.dynamics.reset(self.state)  # may push overlapping spawns apart
@@ -156,7 +158,9 @@ class RoverWorld:
         if self.plan.step.rules is not None:
             self.plan.step.rules.start(teams)
         if self.plan.step.failures is not None:  # drawn after the start, shared as it is
-            self.plan.step.failures.at[rows] = self.starts.failures(drawing, self.fresh_teams)
+            self.plan.step.failures.at[rows] = self.starts.failures(
+                drawing, self.fresh_teams, self.start_groups
+            )
         if teams is None:
             return self._step(self._clipped, 0)  # state 0: sensed, scored and recorded
         return self._step_at(self._clipped, np.where(teams, 0, -1))

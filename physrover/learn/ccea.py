@@ -49,6 +49,7 @@ from physrover.learn.eval_team import BestTeam
 from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.fitness import Problem, make_method
 from physrover.learn.kernels import gather_trajectories
+from physrover.learn.rollouts import mean_over_rollouts, repeat_teams
 from physrover.learn.team_elites import TeamElites
 from physrover.learn.teams import rank_teams, softmax_teams
 
@@ -105,9 +106,10 @@ class CCEA:
         self.n_played = self.n_train + self.n_elite_teams  # episodes before the evaluation's
         # a scenario redrawn per generation: the training teams (and elite teams) share one
         # start state and the champion's evaluation episodes draw fresh ones
-        self.env = RoverVectorEnv(
-            self.n_played + cfg.eval_episodes, config=d, fresh_teams=cfg.eval_episodes
-        )
+        self.env = RoverVectorEnv(  # each played team's rollouts, then the evaluation's
+            self.n_played * cfg.rollouts + cfg.eval_episodes, config=d,
+            fresh_teams=cfg.eval_episodes)  # fmt: skip
+        self.env.world.start_groups = cfg.rollouts  # learn.rollouts
         self.env.reset(seed=int(env_seq.integers(2**31)))
         self.curriculum = None  # a coupling curriculum ([learn] curriculum_start)
         if cfg.curriculum_start:
@@ -204,8 +206,10 @@ class CCEA:
         else:
             order = self.method.plan(self.team_rng, R, k)
         team_index = order.transpose(0, 2, 1).reshape(rounds * k, R)
-        evaluated = self._evaluated_index()
-        G, credit = self.rollout(np.concatenate([team_index, self._elite_index(), evaluated]))
+        played = repeat_teams(np.concatenate([team_index, self._elite_index()]), cfg.rollouts)
+        G, credit = self.rollout(np.concatenate([played, self._evaluated_index()]))
+        G = mean_over_rollouts(G, self.n_played, cfg.rollouts)
+        credit = mean_over_rollouts(credit, self.n_played, cfg.rollouts)
         eval_G = float(G[self.n_played :].mean())
         train_n_req = 0
         if self.curriculum is not None:
@@ -284,7 +288,8 @@ class CCEA:
         """The champion's evaluation episodes at the domain's coupling (the learning
         curve), and the curriculum's rule on its G at the training coupling,
         ``champion_G`` (the coupling tightens for the next generation)."""
-        world, evaluated = self.env.world, slice(self.n_played, None)
+        world = self.env.world
+        evaluated = slice(self.n_played * self.config.learn.rollouts, None)
         values = world.state.poi_values[evaluated]
         G = score_at_coupling(world.state.in_range[:, evaluated], values,
                               self.curriculum.target, world.plan.step.t_final,
