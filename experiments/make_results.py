@@ -292,16 +292,21 @@ def max_critic_at(n_req: int, episodes: int) -> str:
     return "n/a"
 
 
+def budget(run: Run) -> int:
+    """A gradient-based run's budget of training episodes (its config's)."""
+    return int(run.fields[f"{run.fields['method']}.total_episodes"])
+
+
 def trainer_label(run: Run) -> str:
     """A gradient-based run's group: its method and budget unless 25,000 episodes; MADDPG's
     with its warm-up, or marked as 0.1's (no ``action_penalty`` in its [maddpg] table: no
     penalty nor clipping, never pooled with the runs that had them)."""
-    method, budget = run.fields["method"], int(run.fields[f"{run.fields['method']}.total_episodes"])
+    method, episodes = run.fields["method"], budget(run)
     if method == "maddpg" and "action_penalty" not in (run.path / "config.toml").read_text():
         method = "maddpg (0.1: no penalty, no clipping)"
     elif method == "maddpg":
         method = f"maddpg ({run.fields['maddpg.warmup_actions']} warm-up)"
-    return method + ("" if budget == 25000 else f", {budget:,} episodes")
+    return method + ("" if episodes == 25000 else f", {episodes:,} episodes")
 
 
 def marl_table(runs: list[Run], last: int, ccea: list[Run]) -> None:
@@ -316,7 +321,6 @@ def marl_table(runs: list[Run], last: int, ccea: list[Run]) -> None:
         cell = cells[(run.group, run.fields["n_req"])]
         cell["final"].append(final_score(run, last))
         cell["episodes"].append(int(run.episodes[-1]))
-    budget = lambda r: int(r.fields[f"{r.fields['method']}.total_episodes"])  # noqa: E731
     for n_req, episodes in sorted({(r.fields["n_req"], budget(r)) for r in runs}):
         subset = [r for r in runs if r.fields["n_req"] == n_req and budget(r) == episodes]
         played = max(int(r.episodes[-1]) for r in subset)

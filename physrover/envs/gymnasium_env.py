@@ -233,10 +233,11 @@ class RoverVectorEnv(VectorEnv):
     Start states follow the scenario's ``redraw`` (:mod:`physrover.domain.scenarios`): under
     ``"generation"`` one draw is shared by all teams of a reset but the last
     ``fresh_teams``, which draw their own (evaluation envs pass ``fresh_teams=num_envs``:
-    every team its own start); under ``"never"`` all teams start alike.
+    every team its own start), or with ``start_groups`` = n the draws of teams 0 to n - 1
+    in turn (the CCEA's ``rollouts``); under ``"never"`` all teams start alike.
 
     Arguments: ``RoverVectorEnv(num_envs, config=None, render_mode=None, fresh_teams=0,
-    **fields)``.
+    start_groups=1, **fields)``.
     """
 
     metadata = {"render_modes": [], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -247,6 +248,7 @@ class RoverVectorEnv(VectorEnv):
         config: DomainConfig | Mapping[str, Any] | None = None,
         render_mode: str | None = None,
         fresh_teams: int = 0,
+        start_groups: int = 1,
         **fields: Any,
     ):
         if int(num_envs) < 1:
@@ -261,6 +263,7 @@ class RoverVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.world = RoverWorld(self.config, n_teams=self.num_envs)
         self.world.fresh_teams = int(fresh_teams)
+        self.world.start_groups = int(start_groups)
         self._rngs: list[np.random.Generator] | None = None
         self._last_G = np.zeros(self.num_envs)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)  # NEXT_STEP: reset at next step

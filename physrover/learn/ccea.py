@@ -108,8 +108,7 @@ class CCEA:
         # start state and the champion's evaluation episodes draw fresh ones
         self.env = RoverVectorEnv(  # each played team's rollouts, then the evaluation's
             self.n_played * cfg.rollouts + cfg.eval_episodes, config=d,
-            fresh_teams=cfg.eval_episodes)  # fmt: skip
-        self.env.world.start_groups = cfg.rollouts  # learn.rollouts
+            fresh_teams=cfg.eval_episodes, start_groups=cfg.rollouts)  # fmt: skip
         self.env.reset(seed=int(env_seq.integers(2**31)))
         self.curriculum = None  # a coupling curriculum ([learn] curriculum_start)
         if cfg.curriculum_start:
@@ -150,12 +149,15 @@ class CCEA:
         world = self.env.play_episode(policy, headings=False)  # the CCEA reads no angle
         return world.G.copy(), np.array(self.credit(world), dtype=np.float64)
 
+    def _after_populations(self) -> int:
+        """The first rollout index past the populations and the method's extra genomes."""
+        extra = self.method.extra_genomes()
+        return self.k + (0 if extra is None else extra.shape[1])
+
     def _elite_index(self) -> np.ndarray:
         """(n_elite_teams, R) rollout indices of the elite teams: after the population and
         the method's extra genomes (then the best team, :meth:`_evaluated_index`)."""
-        extra = self.method.extra_genomes()
-        base = self.k + (0 if extra is None else extra.shape[1])
-        rows = base + np.arange(self.n_elite_teams)
+        rows = self._after_populations() + np.arange(self.n_elite_teams)
         return np.broadcast_to(rows[:, None], (self.n_elite_teams, self.n_rovers))
 
     def _plays_best_team(self) -> bool:
@@ -166,8 +168,7 @@ class CCEA:
         champion, or the best team (``eval_team``), after the elite teams."""
         if not self._plays_best_team():
             return np.broadcast_to(self.champion, (self.config.learn.eval_episodes, self.n_rovers))
-        extra = self.method.extra_genomes()
-        row = self.k + (0 if extra is None else extra.shape[1]) + self.n_elite_teams
+        row = self._after_populations() + self.n_elite_teams
         return np.full((self.config.learn.eval_episodes, self.n_rovers), row)
 
     def _by_policy(self, per_team: np.ndarray, where: np.ndarray) -> np.ndarray:
