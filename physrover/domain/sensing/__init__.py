@@ -3,7 +3,8 @@
 Owns: the sensor seam (:mod:`~physrover.domain.sensing.sensor`), the sector convention every
 sensor shares (:mod:`~physrover.domain.sensing.sectors`), the paper's density sensor and its
 kernels (:mod:`~physrover.domain.sensing.density`), the lidar
-(:mod:`~physrover.domain.sensing.lidar`), the distances to agents
+(:mod:`~physrover.domain.sensing.lidar`, a team at once where it can:
+:mod:`~physrover.domain.sensing.lanes`), the distances to agents
 (:mod:`~physrover.domain.sensing.distances`) and the table of what each agent class senses
 (:mod:`~physrover.domain.sensing.classes`), which the compiled step reads.
 

@@ -41,6 +41,7 @@ from physrover.domain.agents.classes import class_rows, class_sensor
 from physrover.domain.broadphase import grid
 from physrover.domain.sensing.density import Density
 from physrover.domain.sensing.distances import AgentDistances, sense_distances
+from physrover.domain.sensing.lanes import Lanes, build_lanes, lanes_scratch, no_lanes, sense_lanes
 from physrover.domain.sensing.lidar import COMPOSE, MEASURES, Lidar, SensingView, lidar_agent
 from physrover.domain.sensing.sensor import sensor_size
 
@@ -103,13 +104,16 @@ class ClassSensing(NamedTuple):
     """The grid's cell side (world units): the smallest radius of a local class; 0: none."""
     max_channels: int
     """The largest ``n_channels``."""
+    lanes: Lanes
+    """The whole team at once (:mod:`physrover.domain.sensing.lanes`) where every compiled
+    class reads as the density sensor in one channel layout; else ``lanes.on`` is False."""
 
     @classmethod
     def build(cls, config) -> ClassSensing:
         """The table of ``config`` (a :class:`~physrover.config.DomainConfig`)."""
         rows = class_rows(config)
         n, k = config.n_rovers, config.n_pois
-        table = {name: [] for name in cls._fields if name not in ("d_min_sq", "cell",
+        table = {name: [] for name in cls._fields if name not in ("d_min_sq", "cell", "lanes",
                                                                    "max_channels")}  # fmt: skip
         for c, row in enumerate(rows):
             sensor = class_sensor(config, c)
@@ -168,8 +172,32 @@ class ClassSensing(NamedTuple):
             d_min_sq=float(config.d_min) ** 2,
             cell=float(cell),
             max_channels=int(max(table["n_channels"])),
+            lanes=_lanes(arrays, k),
             **arrays,
         )
+
+
+def _density_like(arrays: dict, c: int) -> bool:
+    """Whether class c's row reads as the density sensor (four sectors of heading, a sum
+    of inverse squares, every agent in view: no grid, no distances)."""
+    return bool(arrays["n_sectors"][c] == 4 and arrays["compose"][c] == 0
+                and arrays["measure"][c] == 0 and not arrays["world"][c]
+                and not arrays["local"][c] and not arrays["distances"][c])  # fmt: skip
+
+
+def _lanes(arrays: dict, n_pois: int) -> Lanes:
+    """The team's :class:`~physrover.domain.sensing.lanes.Lanes` if every compiled class
+    reads as the density sensor in one channel layout (the agents' blocks, the POIs' block
+    and the size), else :func:`~physrover.domain.sensing.lanes.no_lanes`."""
+    compiled = [c for c in range(len(arrays["first"])) if arrays["compiled"][c]]
+    layouts = {(tuple(arrays["agent_base"][c]), int(arrays["poi_base"][c]),
+                int(arrays["n_channels"][c])) for c in compiled}  # fmt: skip
+    if not compiled or len(layouts) > 1 or not all(_density_like(arrays, c) for c in compiled):
+        return no_lanes()
+    fields = ("first", "stop", "radius_sq", "agent_base", "poi_base", "visible",
+              "poi_radius_sq", "empty", "n_channels", "compiled")  # fmt: skip
+    rows = [tuple(arrays[f][c] for f in fields) for c in range(len(arrays["first"]))]
+    return build_lanes(rows, n_pois)
 
 
 class SensingScratch(NamedTuple):
@@ -178,13 +206,15 @@ class SensingScratch(NamedTuple):
     acc: np.ndarray
     count: np.ndarray
     near: np.ndarray
+    lanes: np.ndarray
 
 
 @jit
 def sensing_scratch(sensing, n_agents):
     """Scratch of :func:`sense_classes` for teams of ``n_agents``."""
+    lanes = lanes_scratch(sensing.lanes, n_agents) if sensing.lanes.on else np.zeros((1, 1))
     return SensingScratch(np.zeros(sensing.max_channels), np.zeros(sensing.max_channels,
-                          np.int64), np.empty(n_agents, np.int64))  # fmt: skip
+                          np.int64), np.empty(n_agents, np.int64), lanes)  # fmt: skip
 
 
 @jit
@@ -266,7 +296,7 @@ def _sense_as_density(e, c, state, sensing, acc, count, obs):
     _sense_rows(e, c, state, sensing, 4, 0, 0, False, acc, count, obs)
 
 
-@jit
+@jit_inline
 def sense_classes(e, state, sensing, obs, scratch):
     """Every compiled class's readings for team ``e`` (:func:`lidar_agent`, the module
     docstring) into ``obs[e]`` (R, >= max_channels) float32, each row's columns past its
@@ -276,7 +306,10 @@ def sense_classes(e, state, sensing, obs, scratch):
     of heading) is compiled with those choices as constants: the general kernel branches
     on them for every object, which made it twice as slow (2026-12-05: 4.3 against 2.1 ms
     for 50 teams of ``benchmarks/configs/mixed15.toml`` sensed 50 times)."""
-    acc, count, near = scratch
+    acc, count, near, lanes = scratch
+    if sensing.lanes.on:  # every compiled class at once
+        sense_lanes(e, state, sensing.lanes, sensing.d_min_sq, lanes, obs)
+        return
     if sensing.cell > 0.0:
         _sense_near(e, state, sensing, acc, count, near, obs)
     for c in range(sensing.first.shape[0]):
