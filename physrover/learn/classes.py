@@ -12,6 +12,15 @@ after; a class's policies read their columns, and a fitness critic of an agent s
 class's observations, zero-padded (a weight on a padded input never moves: the input is
 always 0).
 
+A team whose classes all steer (none picks) plays as one
+:class:`~physrover.learn.rollout.TeamPolicy` of ``D -> hidden -> 2`` networks, each
+class's genomes re-laid with zero input weights on the columns past its own
+(:meth:`ClassLayouts.padded`), so a learner's whole episode is one compiled call, as the
+paper's. Bit for bit what the class's own network gives: each hidden unit adds ``b1`` and
+then its inputs in order (:func:`~physrover.learn.forward.forward_team`), and the padded
+terms come last and are ``0 * 0 = +0``, which leaves every sum as it was (a sum of ``-0``
+would become ``+0``, which nothing downstream tells apart).
+
 :func:`team_layout` gives a domain's layout: the paper's single
 :class:`~physrover.learn.policies.PolicyLayout` without classes (the same code as
 before), a :class:`ClassLayouts` with them.
@@ -24,6 +33,7 @@ import numpy as np
 from physrover.domain.agents.classes import class_rows, pick_count
 from physrover.domain.sensing.sensor import sensor_size
 from physrover.learn.policies import PolicyLayout
+from physrover.learn.rollout import TeamPolicy
 
 
 class ClassLayouts:
@@ -40,6 +50,8 @@ class ClassLayouts:
         self.hidden = hidden
         self.n_in = max(dims)
         self.size = max(layout.size for layout in self.layouts)
+        self.picks = any(layout.n_out != 2 for layout in self.layouts)
+        self.tanh_hidden = self.layouts[0].activation == "tanh"
 
     def init(self, shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
         """(R, k, P) genomes: each class's initialised as PolicyLayout does, class by
@@ -50,12 +62,29 @@ class ClassLayouts:
             out[rows, :, : layout.size] = layout.init((rows.stop - rows.start, k), rng)
         return out
 
-    def prepare(self, genomes: np.ndarray) -> MixedTeamPolicy:
-        """The policy ``obs (E, R, n_in) -> actions (E, R, 2)`` of fixed (E, R, P) genomes."""
+    def prepare(self, genomes: np.ndarray) -> TeamPolicy | MixedTeamPolicy:
+        """The policy ``obs (E, R, n_in) -> actions (E, R, 2)`` of fixed (E, R, P) genomes:
+        one :class:`~physrover.learn.rollout.TeamPolicy` of the :meth:`padded` genomes
+        unless a class picks (module docstring)."""
         genomes = np.asarray(genomes)
         if genomes.shape[-1] != self.size:
             raise ValueError(f"genomes must have {self.size} parameters, got {genomes.shape[-1]}")
-        return MixedTeamPolicy(genomes, self)
+        if self.picks:
+            return MixedTeamPolicy(genomes, self)
+        return TeamPolicy(self.padded(genomes), self.hidden, self.n_in, self.tanh_hidden)
+
+    def padded(self, genomes: np.ndarray) -> np.ndarray:
+        """(E, R, P_D) float32 genomes of ``D -> hidden -> 2`` networks (D = ``n_in``, the
+        widest class's) from (E, R, P) class genomes: a class's ``W1 (n_in_c x H)`` in the
+        first rows of ``W1 (D x H)``, zero rows after, then its ``b1 | W2 | b2``."""
+        H = self.hidden
+        rest = H + 2 * H + 2  # b1 | W2 | b2
+        out = np.zeros((*genomes.shape[:2], self.n_in * H + rest), dtype=np.float32)
+        for rows, layout in zip(self.rows, self.layouts, strict=True):
+            w1 = layout.n_in * H
+            out[:, rows, :w1] = genomes[:, rows, :w1]
+            out[:, rows, self.n_in * H :] = genomes[:, rows, w1 : w1 + rest]
+        return out
 
     def act(self, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """(E, R, 2) actions of (E, R, P) genomes on (E, R, n_in) observations."""
