@@ -164,9 +164,13 @@ def sense_lanes(e, state, lanes, d_min_sq, scratch, obs):
     for i in range(n_agents):
         if not lanes.sensed[i]:
             continue
+        # ``empty`` read before the loop makes the choice below a select, not a branch on
+        # what the agent saw, which the predictor cannot learn: 3.6 -> 2.3 ms for 60 teams
+        # sensed over an episode's 51 layouts (docs/performance.md)
+        empty = lanes.empty[i]
         for q in range(n_channels):  # a sum of 0: nothing seen (module docstring)
             total = scratch[4 + q, i]
-            obs[e, i, q] = total if total > 0.0 else lanes.empty[i]
+            obs[e, i, q] = total if total > 0.0 else empty
         for q in range(n_channels, obs.shape[2]):
             obs[e, i, q] = 0.0
 
