@@ -59,11 +59,15 @@ class Roles(NamedTuple):
     bounds: np.ndarray
     """(R, 4) float64: x_min, x_max, y_min, y_max (+-inf: unbounded)."""
     gate: np.ndarray
-    """(R, C) bool: the classes that must be near for agent i to move (none: always)."""
+    """(R, M) int64: the agents one of which must be near for agent i to move, the first
+    ``n_gate[i]`` of its row (the other agents of its ``moves_with`` classes, in team
+    order; M the most any agent has, at least 1)."""
+    n_gate: np.ndarray
+    """(R,) int64: how many of ``gate[i]`` are agent i's."""
     gate_radius_sq: np.ndarray
     """(R,) float64: how near, squared."""
     gated: np.ndarray
-    """(R,) bool: agent i has a gate (``gate[i].any()``)."""
+    """(R,) bool: agent i has a gate (its class names ``moves_with`` classes)."""
     pick_mode: np.ndarray
     """(R,) int64: 0 a command, 1 ``"pick"``, 2 ``"follow"``."""
     pick_from: np.ndarray
@@ -88,7 +92,6 @@ class Roles(NamedTuple):
             "speed": [c.max_speed for c in classes],
             "world_frame": [c.action == "world" for c in classes],
             "bounds": [c.bounds or (-math.inf, math.inf, -math.inf, math.inf) for c in classes],
-            "gate": [[n in c.moves_with for n in names] for c in classes],
             "gate_radius_sq": [gate_radius(config, c) ** 2 for c in range(len(classes))],
             "gated": [bool(c.moves_with) for c in classes],
             "pick_mode": [PICK_MODES.index(c.action) if c.action in PICK_MODES else 0
@@ -97,28 +100,35 @@ class Roles(NamedTuple):
             "n_picks": [pick_count(config, c) for c in range(len(classes))],
             "follow_radius_sq": [sensor_radius(config, c) ** 2 for c in range(len(classes))],
         }  # fmt: skip
+        partners = [[j for j, cj in enumerate(agent_class)
+                     if j != i and names[cj] in classes[ci].moves_with]
+                    for i, ci in enumerate(agent_class)]  # fmt: skip
+        gate = np.zeros((len(agent_class), max(1, *map(len, partners))), np.int64)
+        for i, row in enumerate(partners):
+            gate[i, : len(row)] = row
+        n_gate = np.array([len(row) for row in partners], np.int64)
         return cls(agent_class, **{k: np.array(v)[agent_class] for k, v in per_class.items()},
-                   pick_move=np.zeros((len(agent_class), 2)))  # fmt: skip
+                   gate=gate, n_gate=n_gate, pick_move=np.zeros((len(agent_class), 2)))  # fmt: skip
 
 
 @jit
 def gate_free(e, positions, roles, free):
     """Write ``free`` (R,) bool: whether each agent of team e may move this step (step 1 of
-    the module docstring), from the (E, R, 2) ``positions`` before anyone moves."""
-    n = positions.shape[1]
-    for i in range(n):
-        free[i] = True
-        if not roles.gated[i]:
-            continue
-        free[i] = False
-        xi, yi = positions[e, i, 0], positions[e, i, 1]
-        for j in range(n):
-            if j != i and roles.gate[i, roles.agent_class[j]]:
-                dx = positions[e, j, 0] - xi
-                dy = positions[e, j, 1] - yi
-                if dx * dx + dy * dy <= roles.gate_radius_sq[i]:
-                    free[i] = True
-                    break
+    the module docstring), from the (E, R, 2) ``positions`` before anyone moves.
+
+    Every partner of a gated agent is looked at, without a branch on its distance: whether
+    one is near is a coin toss that the branch predictor cannot learn (2026-12-06, the
+    15-agent mixed team's 60 teams gated over an episode's 51 layouts: 0.36 ms with a
+    branch and a class lookup per agent, 0.19 ms over its partners without)."""
+    for i in range(positions.shape[1]):
+        near = not roles.gated[i]
+        xi, yi, reach = positions[e, i, 0], positions[e, i, 1], roles.gate_radius_sq[i]
+        for m in range(roles.n_gate[i]):
+            j = roles.gate[i, m]
+            dx = positions[e, j, 0] - xi
+            dy = positions[e, j, 1] - yi
+            near |= dx * dx + dy * dy <= reach
+        free[i] = near
 
 
 @jit
