@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from physrover.core.compiled import jit, jit_inline
+from physrover.core.compiled import jit_inline
 from physrover.domain.agents.classes import (
     agent_classes,
     class_names,
@@ -111,7 +111,7 @@ class Roles(NamedTuple):
                    gate=gate, n_gate=n_gate, pick_move=np.zeros((len(agent_class), 2)))  # fmt: skip
 
 
-@jit
+@jit_inline
 def gate_free(e, positions, roles, free):
     """Write ``free`` (R,) bool: whether each agent of team e may move this step (step 1 of
     the module docstring), from the (E, R, 2) ``positions`` before anyone moves.
@@ -131,7 +131,7 @@ def gate_free(e, positions, roles, free):
         free[i] = near
 
 
-@jit
+@jit_inline
 def pick_moves(e, positions, commands, roles):
     """Write ``roles.pick_move[i]``, the move of each picking agent i of team e (module
     docstring, step 3) from the (E, R, 2) ``positions`` before anyone moves and the (E, R,
