@@ -157,7 +157,9 @@ def replay_captures(in_range, removed, n_req, rules, out, positions=None, poi_po
                     if rules.valued[k]:
                         if positions is None:  # compiled away where none is given
                             continue
-                        if coupling_met(k, near, rules, n_req, -1):
+                        if coupling_met(
+                            k, near, rules.typed, rules.require, rules.agent_class, n_req, -1
+                        ):
                             for i in range(n_agents):
                                 left_in[i] = rules.counts_for[k, i] and not removed[e, a, t, i]
                             value = nearest_value(positions[t, e], poi_positions[e, k, 0],
@@ -169,9 +171,9 @@ def replay_captures(in_range, removed, n_req, rules, out, positions=None, poi_po
                         continue
                     if first[k] >= 0:
                         continue
-                    if coupling_met(k, near, rules, n_req, -1) and predecessors_before(
-                        rules.after, k, first, t
-                    ):
+                    if coupling_met(
+                        k, near, rules.typed, rules.require, rules.agent_class, n_req, -1
+                    ) and predecessors_before(rules.after, k, first, t):
                         first[k] = t
             for k in range(n_pois):
                 out[e, a, k] = best[k] if rules.valued[k] else first[k] >= 0
