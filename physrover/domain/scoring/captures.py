@@ -107,10 +107,11 @@ def capture_by_rules(e, k, near, t, typed, require, agent_class, after, step_wit
     its ``final_only`` checked and not valued by distance), for the team and for each
     counterfactual without rover i; the counts are this step's. The rules' arrays come one
     by one (``typed`` to ``step_without``, :class:`~physrover.domain.scoring.rules.PoiRules`'
-    fields), the state's too: a helper inlined once per POI and step that takes the rules'
-    or the state's tuple costs their arrays' reference counts at every call (2026-12-06,
+    fields), the state's too: as a helper inlined once per POI and step that took the rules'
+    and the state's tuples it cost more than its own work (2026-12-06,
     ``benchmarks/configs/chain.toml``'s 60 teams scored over an episode's 51 layouts: 2.5
-    ms with the tuples, 1.7 without; the paper's POIs: 0.5).
+    ms with the tuples, 1.7 without; the paper's POIs: 0.5). Measured, not a rule: the same
+    change to :func:`~physrover.domain.agents.roles.class_command` made the move slower.
 
     Leaving an agent out never raises a count, so no counterfactual meets a coupling that the
     team misses, and leaving out an agent not in range changes nothing: the coupling is

@@ -165,8 +165,8 @@ def sense_lanes(e, state, lanes, d_min_sq, scratch, obs):
         if not lanes.sensed[i]:
             continue
         # ``empty`` read before the loop makes the choice below a select, not a branch on
-        # what the agent saw, which the predictor cannot learn: 3.6 -> 2.3 ms for 60 teams
-        # sensed over an episode's 51 layouts (docs/performance.md)
+        # what the agent saw, which the predictor cannot learn: 4.5 -> 3.0 ms for 60 mixed
+        # teams sensed over an episode's 51 layouts (docs/performance.md)
         empty = lanes.empty[i]
         for q in range(n_channels):  # a sum of 0: nothing seen (module docstring)
             total = scratch[4 + q, i]
