@@ -192,6 +192,54 @@ def test_random_episodes_move_as_the_oracle(seed):
     assert (moved.sum(-1) == 0).any() and (moved.sum(-1) > 0).any()  # the gate shut and opened
 
 
+THREE = """
+[domain]
+n_req = 1
+[[agents]]
+name = "rover"
+count = 3
+moves_with = ["uav", "scout"]
+moves_with_radius = 2.5
+[[agents]]
+name = "uav"
+count = 2
+action = "world"
+captures = false
+[[agents]]
+name = "scout"
+count = 2
+moves_with = ["rover"]
+moves_with_radius = 1.5
+"""
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_gates_over_several_classes_move_as_the_oracle(seed):
+    """Each gated agent's partners are the agents of every class it moves with (the
+    compiled gate's partner lists): random episodes of three classes, two of them gated,
+    one by two classes, step for step as the plain-loop oracle."""
+    rng = np.random.default_rng(seed)
+    d = _domain(THREE)
+    world = RoverWorld(d, 2)
+    world.reset([np.random.default_rng([seed, e]) for e in range(2)])
+    classes = [d.agents[0]] * 3 + [d.agents[1]] * 2 + [d.agents[2]] * 2
+    names = [c.name for c in d.agents]
+    stuck = moving = 0
+    for _ in range(30):
+        before = world.rover_positions.copy(), world.rover_headings.copy()
+        actions = rng.uniform(-1.5, 1.5, (2, 7, 2))
+        world.step(actions)
+        for e in range(2):
+            positions, headings = classes_step(before[0][e].tolist(), before[1][e].tolist(),
+                                               actions[e], classes, names)  # fmt: skip
+            np.testing.assert_allclose(world.rover_positions[e], positions, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(world.rover_headings[e], headings, rtol=0, atol=1e-9)
+            still = np.all(world.rover_positions[e] == before[0][e], axis=-1)
+            stuck += still[[0, 1, 2, 5, 6]].sum()
+            moving += (~still[[0, 1, 2, 5, 6]]).sum()
+    assert stuck > 0 and moving > 0  # the gates shut and opened
+
+
 def test_each_class_observes_with_its_own_sensor_zero_padded():
     d = _domain()
     world = RoverWorld(d, 2)
