@@ -67,7 +67,12 @@ def _final(spec) -> float:
 def _fake_runs(sweep: Sweep, root: Path, seeds) -> None:
     """Run directories of the sweep's runs of ``seeds`` as training writes them (config and
     metrics of 60 generations; the last 50 generations' eval G average to :func:`_final`)."""
-    for spec in sweep.runs(root, seeds=seeds):
+    _fake_runs_of(sweep.runs(root, seeds=seeds))
+
+
+def _fake_runs_of(specs) -> None:
+    """:func:`_fake_runs` of the run specs given."""
+    for spec in specs:
         out = Path(spec.out)
         out.mkdir(parents=True)
         (out / "config.toml").write_text(spec.config_toml)
@@ -122,6 +127,29 @@ def test_chunks_of_seeds_on_fresh_machines_equal_the_whole_sweep(tmp_path, make_
     assert "| max-critic | 1 | 4 | 6.90 +- " in cells
     # the first machine alone: two seeds a cell
     assert "| max-critic | 1 | 4 | 5.90 +- " in _outputs(first / "results")[1]
+
+
+def test_a_chunk_with_one_finished_run_keeps_the_earlier_rows_grid(tmp_path):
+    """A later machine whose chunk has finished one run (its grid fields vary in no run
+    found there) pools the earlier rows with their grid columns and adds its run's values,
+    so the cells stay those of the whole grid."""
+    from physrover.analysis.results import write_results
+
+    path = tmp_path / "sweep.toml"
+    path.write_text(SWEEP)
+    sweep = Sweep.load(path)
+    _fake_runs(sweep, tmp_path / "first", range(0, 2))
+    write_results([tmp_path / "first" / "fig8-9-paper"], tmp_path / "results")
+    one = next(spec for spec in sweep.runs(tmp_path / "second", seeds=range(2, 3))
+               if "max-critic" in spec.out and "n_rovers=4" in spec.out)  # fmt: skip
+    _fake_runs_of([one])
+    write_results([tmp_path / "second" / "fig8-9-paper"], tmp_path / "results")
+    rows = read_rows(tmp_path / "results" / "runs.csv")
+    assert len(rows) == 9 and all(row["n_rovers"] in ("3", "4") for row in rows)
+    assert {(r["method"], r["n_rovers"], r["seed"]) for r in rows} >= {("max-critic", "4", "2")}
+    cells = (tmp_path / "results" / "cells.md").read_text()
+    assert "| max-critic | 4 | 6.40 +- " in cells  # seeds 0-2: 5.4, 6.4, 7.4
+    assert "| D | 3 | 0.80 +- " in cells  # seeds 0-1: 0.3, 1.3
 
 
 def test_unfinished_kept_rows_are_dropped(tmp_path, make_results):

@@ -145,8 +145,10 @@ def sweep_results(sweep_dir: Path, previous: list[dict], last: int) -> SweepResu
     kept = kept_rows(earlier, name, runs) if earlier else []
     if not runs and not kept:
         raise RunError(f"{sweep_dir}: no finished run (nor earlier rows of sweep {name})")
-    if not runs:  # only rows of earlier machines: the grid is theirs
-        grid = [c for c in kept[0] if c not in LEAD + TAIL]
+    if kept:  # the earlier rows' grid, then any field only the runs found here vary in (a
+        # chunk whose finished runs are all of one cell varies in none)
+        theirs = [c for c in kept[0] if c not in LEAD + TAIL]
+        grid = theirs + [f for f in grid if f not in theirs]
     rows = sorted([*kept, *(run_row(name, run, grid, last) for run in runs)],
                   key=lambda row: row["run"])  # fmt: skip
     return SweepResults(name, grid, rows, runs, len(kept), messages)
