@@ -166,6 +166,26 @@ def test_only_capturing_classes_count():
     assert world.G[0] == 1.0 and world.D[0].tolist() == [1.0, 0.0]
 
 
+def _steps_as_the_oracle(d, n_teams, steps, seed, rng):
+    """``steps`` random commands (from ``rng``) to ``n_teams`` teams of domain ``d``, each
+    step checked against the plain-loop oracle (:func:`oracles.classes_step`); returns the
+    world."""
+    world = RoverWorld(d, n_teams)
+    world.reset([np.random.default_rng([seed, e]) for e in range(n_teams)])
+    classes = [c for c in d.agents for _ in range(c.count)]
+    names = [c.name for c in d.agents]
+    for _ in range(steps):
+        before = world.rover_positions.copy(), world.rover_headings.copy()
+        actions = rng.uniform(-1.5, 1.5, (n_teams, len(classes), 2))
+        world.step(actions)
+        for e in range(n_teams):
+            positions, headings = classes_step(before[0][e].tolist(), before[1][e].tolist(),
+                                               actions[e], classes, names)  # fmt: skip
+            np.testing.assert_allclose(world.rover_positions[e], positions, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(world.rover_headings[e], headings, rtol=0, atol=1e-9)
+    return world
+
+
 @pytest.mark.parametrize("seed", range(5))
 def test_random_episodes_move_as_the_oracle(seed):
     rng = np.random.default_rng(seed)
@@ -173,19 +193,7 @@ def test_random_episodes_move_as_the_oracle(seed):
     d = _domain(text).replace(n_req=1)
     d = DomainConfig.from_toml(d.to_toml().replace('name = "uav"\ncount = 1',
                                                    'name = "uav"\ncount = 3'))  # fmt: skip
-    world = RoverWorld(d, 3)
-    world.reset([np.random.default_rng([seed, e]) for e in range(3)])
-    classes = [d.agents[0]] + [d.agents[1]] * 3
-    names = [c.name for c in d.agents]
-    for _ in range(25):
-        before = world.rover_positions.copy(), world.rover_headings.copy()
-        actions = rng.uniform(-1.5, 1.5, (3, 4, 2))
-        world.step(actions)
-        for e in range(3):
-            positions, headings = classes_step(before[0][e].tolist(), before[1][e].tolist(),
-                                               actions[e], classes, names)  # fmt: skip
-            np.testing.assert_allclose(world.rover_positions[e], positions, rtol=0, atol=1e-9)
-            np.testing.assert_allclose(world.rover_headings[e], headings, rtol=0, atol=1e-9)
+    world = _steps_as_the_oracle(d, 3, 25, seed, rng)
     uav_x = world.position_history[:, :, 1:, 0]
     assert ((uav_x == 4.0) | (uav_x == -10.0)).any()  # a bound was met
     moved = np.abs(world.position_history[1:, :, 0] - world.position_history[:-1, :, 0])
@@ -218,26 +226,10 @@ def test_gates_over_several_classes_move_as_the_oracle(seed):
     """Each gated agent's partners are the agents of every class it moves with (the
     compiled gate's partner lists): random episodes of three classes, two of them gated,
     one by two classes, step for step as the plain-loop oracle."""
-    rng = np.random.default_rng(seed)
-    d = _domain(THREE)
-    world = RoverWorld(d, 2)
-    world.reset([np.random.default_rng([seed, e]) for e in range(2)])
-    classes = [d.agents[0]] * 3 + [d.agents[1]] * 2 + [d.agents[2]] * 2
-    names = [c.name for c in d.agents]
-    stuck = moving = 0
-    for _ in range(30):
-        before = world.rover_positions.copy(), world.rover_headings.copy()
-        actions = rng.uniform(-1.5, 1.5, (2, 7, 2))
-        world.step(actions)
-        for e in range(2):
-            positions, headings = classes_step(before[0][e].tolist(), before[1][e].tolist(),
-                                               actions[e], classes, names)  # fmt: skip
-            np.testing.assert_allclose(world.rover_positions[e], positions, rtol=0, atol=1e-9)
-            np.testing.assert_allclose(world.rover_headings[e], headings, rtol=0, atol=1e-9)
-            still = np.all(world.rover_positions[e] == before[0][e], axis=-1)
-            stuck += still[[0, 1, 2, 5, 6]].sum()
-            moving += (~still[[0, 1, 2, 5, 6]]).sum()
-    assert stuck > 0 and moving > 0  # the gates shut and opened
+    world = _steps_as_the_oracle(_domain(THREE), 2, 30, seed, np.random.default_rng(seed))
+    gated = world.position_history[:, :, [0, 1, 2, 5, 6]]
+    still = np.all(gated[1:] == gated[:-1], axis=-1)
+    assert still.any() and (~still).any()  # the gates shut and opened
 
 
 def test_each_class_observes_with_its_own_sensor_zero_padded():
