@@ -4,8 +4,9 @@ Owns: captures and the team score, compiled (:mod:`~physrover.domain.scoring.cap
 Eqs. 11-13 and D's counterfactual captures, which the step calls), the POIs' rules as the
 kernels read them (:mod:`~physrover.domain.scoring.rules`), the credits read from an
 episode (:mod:`~physrover.domain.scoring.difference`: G, D of Eq. 1, D++;
-:mod:`~physrover.domain.scoring.influence`: IndirectDifference) and the credit seam with its
-registry entries (:mod:`~physrover.domain.scoring.credit`).
+:mod:`~physrover.domain.scoring.influence`: IndirectDifference;
+:mod:`~physrover.domain.scoring.proximity`: MERL's dense proximity reward) and the credit
+seam with its registry entries (:mod:`~physrover.domain.scoring.credit`).
 
 May import: :mod:`physrover.core`, :mod:`physrover.config`, :mod:`physrover.domain.state`,
 :mod:`physrover.domain.agents`.

@@ -12,6 +12,9 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
   would have completed a coupling with partners;
 - ``"D-partial"``: D where the team captured, else each rover's difference to how near
   the team came to its couplings (an exploration credit, beyond the paper);
+- ``"proximity"``: MERL's dense per-step reward, each rover's nearness to the nearest
+  POI not yet captured (:mod:`physrover.domain.scoring.proximity`; no coupling
+  information, the signal of the hybrid's gradient learner, :mod:`physrover.learn.hybrid`);
 - ``"ID"``, ``"ID-step"``, ``"ID-step-local"``, ``"ID-step-system"``,
   ``"ID-step-difference"``, ``"ID-step-all-or-nothing-lab"``, ``"ID-manual"``:
   IndirectDifference (:mod:`physrover.domain.scoring.influence`), which credits an agent
@@ -41,6 +44,7 @@ from physrover.domain.scoring.influence import (
     indirect_difference,
     manual_difference,
 )
+from physrover.domain.scoring.proximity import proximity_now, proximity_steps
 
 
 class Credit:
@@ -49,6 +53,9 @@ class Credit:
     per_step_defined = False
     """Whether :meth:`per_step` gives the signal at every step (a fitness critic's per-step
     targets, ``[learn] critic_target = "step"``)."""
+    dense = False
+    """Whether a per-step learner gets the signal at every step (:meth:`now`) rather than
+    the episode's at its last step (:func:`step_rewards`)."""
 
     def __call__(self, world) -> np.ndarray:
         """(E, R) float64 feedback of each rover of each team for the episode ``world`` just
@@ -64,6 +71,11 @@ class Credit:
         """(T + 1, E, R) float64: the signal of each step taken alone (row t: step t's
         record), for signals with ``per_step_defined``."""
         raise NotImplementedError(f"{type(self).__name__} has no per-step form")
+
+    def now(self, world) -> np.ndarray:
+        """(E, R) float64: the signal of the world's latest step, for ``dense`` signals
+        (row ``world.t`` of :meth:`per_step`)."""
+        raise NotImplementedError(f"{type(self).__name__} is not a dense signal")
 
 
 def check_counted_pois(domain, signal: str) -> None:
@@ -126,6 +138,24 @@ class PartialCoupling(Credit):
         """Progress toward a coupling is a count of rovers in range: not defined for
         ordered, typed or final-state POIs."""
         check_counted_pois(domain, "D-partial")
+
+
+class Proximity(Credit):
+    """MERL's proximity reward (:mod:`physrover.domain.scoring.proximity`): each step,
+    min(1, d_cap / distance to the nearest POI not yet captured); the episode's credit is
+    its sum over steps 1..t. Dense: a per-step learner gets it at every step."""
+
+    per_step_defined = True
+    dense = True
+
+    def __call__(self, world) -> np.ndarray:
+        return proximity_steps(world)[1 : world.t + 1].sum(axis=0)
+
+    def per_step(self, world) -> np.ndarray:
+        return proximity_steps(world)
+
+    def now(self, world) -> np.ndarray:
+        return proximity_now(world)
 
 
 class IndirectDifference(Credit):
@@ -205,15 +235,19 @@ def step_rewards(name: str, world, last_step: bool, team_reward: np.ndarray) -> 
     """Each rover's reward of one step for a per-step learner (MAPPO, MADDPG, the PettingZoo
     env) under the credit signal ``name``: "G" is the team's increase of G at every step
     (``team_reward`` (E,), the env's reward: each rover's rewards sum to G, a dense
-    signal); any other registered signal (:data:`~physrover.core.registry.CREDITS`: D,
-    D++, ID, a user's) is the signal of the episode ``world`` just played, at its last step
+    signal); a dense signal (``Credit.dense``: "proximity") is its value at this step;
+    any other registered signal (:data:`~physrover.core.registry.CREDITS`: D, D++, ID, a
+    user's) is the signal of the episode ``world`` just played, at its last step
     (``last_step``), and 0 before, so each rover's rewards sum to it. Returns (E, R)."""
     if name == "G":
         return np.repeat(np.asarray(team_reward, dtype=np.float64)[:, None], world.n_rovers,
                          axis=1)  # fmt: skip
+    credit = team_credit(name, world.config)
+    if credit.dense:
+        return np.asarray(credit.now(world), dtype=np.float64)
     if not last_step:
         return np.zeros((world.n_teams, world.n_rovers))
-    return np.asarray(team_credit(name, world.config)(world), dtype=np.float64)
+    return np.asarray(credit(world), dtype=np.float64)
 
 
 def register_credit(name: str, credit: Credit, *, replace: bool = False) -> Credit:
@@ -227,6 +261,7 @@ register_credit("D", Difference())
 register_credit("G", TeamScore())
 register_credit("D++", DPlusPlus())
 register_credit("D-partial", PartialCoupling())
+register_credit("proximity", Proximity())
 register_credit("ID", IndirectDifference("trajectory"))
 register_credit("ID-step", IndirectDifference("step"))
 for _rule in STEP_RULES[1:]:
