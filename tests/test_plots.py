@@ -11,7 +11,7 @@ from physrover.analysis import plots
 from physrover.analysis.plots import curve_table, final_table, load_runs, mean_ci, t975, write_csv
 from physrover.config import ConfigError, RunConfig
 from physrover.experiment.store import prepare_run_dir
-from physrover.learn.ccea import stats_header
+from physrover.learn.stats import stats_header
 
 
 def test_t_quantiles():

@@ -8,7 +8,7 @@ import pytest
 from physrover.analysis.tables import compare_samples, parse_compare
 from physrover.cli.main import main
 from physrover.config import ConfigError, RunConfig
-from physrover.learn.ccea import stats_header
+from physrover.learn.stats import stats_header
 
 # Final scores (mean eval G of the last 2 generations) by (method, n_req), one per seed.
 FINALS = {

@@ -165,13 +165,17 @@ def run_fields(config) -> dict:
     """A run's config fields by the names labels and tables use: the domain's (with its
     [[agents]] and [[pois]] fields, ``uav.count``...), [learn]'s, and the method's own
     table's, by bare name for a fitness method's (``critic_lr``) and ``table.field`` for a
-    gradient-based trainer's (``mappo.lr``)."""
+    gradient-based trainer's (``mappo.lr``); ``hybrid``, the hybrid's learner or "none",
+    and with a ``[hybrid]`` table its fields as ``hybrid.field``."""
     fields = {**config.domain.flat_dict(), **role_fields(config.domain), **config.learn.to_dict()}
     if config.trainer is not None:
         section = config.trainer.section
         fields |= {f"{section}.{k}": v for k, v in config.trainer.to_dict().items()}
     elif config.settings is not None:
         fields |= config.settings.to_dict()
+    fields["hybrid"] = "none" if config.hybrid is None else config.hybrid.learner
+    if config.hybrid is not None:
+        fields |= {f"hybrid.{k}": v for k, v in config.hybrid.to_dict().items()}
     return fields
 
 

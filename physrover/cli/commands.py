@@ -101,6 +101,8 @@ def cmd_methods(args: argparse.Namespace) -> int:
         '\nchoose with: physrover train --method NAME  (or [learn] method = "NAME"); its '
         "settings: physrover info --set method=NAME"
     )
+    print("a trainer beside a fitness method, its actor migrating into the populations (MERL): "
+          "--set hybrid=mappo  ([hybrid]; physrover info --set hybrid=mappo)")  # fmt: skip
     from physrover.core.registry import CREDITS, DYNAMICS, SCENARIOS, SENSORS
 
     print("\nthe other seams (physrover.core.registry; docs/extending.md):")

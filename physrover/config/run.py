@@ -18,6 +18,7 @@ from physrover.config.base import (
     naming_file,
 )
 from physrover.config.domain import COMPONENTS, REGISTRIES, DomainConfig
+from physrover.config.hybrid import HybridConfig
 from physrover.config.learn import LearnConfig
 from physrover.config.roles import ROLE_TABLES, check_not_overridden
 from physrover.core.registry import CREDITS, FITNESS_METHODS, TRAINERS
@@ -25,7 +26,7 @@ from physrover.core.registry import CREDITS, FITNESS_METHODS, TRAINERS
 SHARED_WITH_LEARN = ("seed", "hidden", "eval_episodes", "checkpoint_every")
 """Fields a trainer's table shares with [learn], set in [learn] only (one seed per run)."""
 
-RESERVED_SECTIONS = ("domain", *COMPONENTS, *ROLE_TABLES, "learn", "marl")
+RESERVED_SECTIONS = ("domain", *COMPONENTS, *ROLE_TABLES, "learn", "marl", "hybrid")
 """Tables of a run's config.toml that no method's or trainer's own table may take."""
 
 
@@ -79,11 +80,13 @@ class RunConfig:
     gradient-based trainer's (``[mappo]``; its fields shared with [learn],
     :data:`SHARED_WITH_LEARN`, are taken from [learn]). A method without settings (``D``,
     ``G``, ``hall-of-fame``) has ``settings = None``; None for one that has them means its
-    defaults."""
+    defaults. ``hybrid``: a ``[hybrid]`` table, a gradient learner whose actors migrate into
+    the CCEA's populations (:class:`~physrover.config.hybrid.HybridConfig`), or None."""
 
     domain: DomainConfig = dataclasses.field(default_factory=DomainConfig)
     learn: LearnConfig = dataclasses.field(default_factory=LearnConfig)
     settings: Any = None
+    hybrid: HybridConfig | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.domain, DomainConfig):
@@ -94,6 +97,7 @@ class RunConfig:
         for name in sorted(signals & set(CREDITS)):  # defined for the domain?
             CREDITS[name].check(self.domain)
         self._check_curriculum()
+        self._check_hybrid()
         method = self.learn.method
         cls = settings_class(method)
         if cls is None:
@@ -138,6 +142,24 @@ class RunConfig:
                   "by a rule (after, score_at, require, value_by); the curriculum needs POIs "
                   "captured by a count of agents in range")  # fmt: skip
 
+    def _check_hybrid(self) -> None:
+        """A ``[hybrid]`` learner's actor must be a genome of the CCEA's populations: the
+        paper's rovers (no agent classes) with ReLU policies, under a fitness method."""
+        hybrid = self.hybrid
+        if hybrid is None:
+            return
+        check(isinstance(hybrid, HybridConfig), "hybrid", "must be a HybridConfig")
+        check(self.learn.method not in TRAINERS, "hybrid", f"the hybrid runs beside the CCEA; "
+              f"method {self.learn.method!r} is a gradient-based trainer")  # fmt: skip
+        check(not self.domain.agents, "hybrid", "the hybrid's learner trains teams of the "
+              "paper's rovers only, not agent classes ([[agents]])")  # fmt: skip
+        check(self.learn.activation == "relu", "hybrid", "the learner's actor is ReLU then "
+              'tanh: set [learn] activation = "relu"')  # fmt: skip
+        try:
+            CREDITS[hybrid.reward].check(self.domain)
+        except ConfigError as exc:
+            raise ConfigError("hybrid.reward", exc.message) from None
+
     @property
     def length(self) -> int:
         """What the run's checkpoints count when it is finished: [learn] generations, or a
@@ -171,6 +193,8 @@ class RunConfig:
             own = self.settings.to_dict()
             shared = SHARED_WITH_LEARN if self.trainer is not None else ()
             tables[self.settings.section] = {k: v for k, v in own.items() if k not in shared}
+        if self.hybrid is not None:
+            tables["hybrid"] = self.hybrid.to_dict()
         return tables
 
     def to_toml(self) -> str:
@@ -179,7 +203,7 @@ class RunConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
         sections = settings_tables()
-        known = ["domain", *COMPONENTS, *ROLE_TABLES, "learn", *sections]
+        known = ["domain", *COMPONENTS, *ROLE_TABLES, "learn", "hybrid", *sections]
         unknown = sorted(set(data) - set(known))
         if unknown:
             raise ConfigError(unknown[0], f"unknown TOML table (known: {', '.join(known)}; a "
@@ -206,7 +230,13 @@ class RunConfig:
             settings = own.from_dict(table)
         else:
             _move_from_learn(moved, {}, None, learn.method)
-        return cls(DomainConfig.from_tables(data), learn, settings)
+        hybrid = None
+        if "hybrid" in data:
+            try:
+                hybrid = HybridConfig.from_dict(data["hybrid"])
+            except ConfigError as exc:
+                raise ConfigError(f"hybrid.{exc.field}", exc.message) from None
+        return cls(DomainConfig.from_tables(data), learn, settings, hybrid)
 
     @classmethod
     def from_toml(cls, text: str) -> RunConfig:
@@ -223,8 +253,10 @@ class RunConfig:
         """Apply ``{field: value}`` by bare field name, or ``table.field`` (``critic.critic_lr``,
         ``mappo.lr``); a bare name that two active tables share is an error that says which
         to write. A change of ``method`` starts the new method's table from its defaults
-        unless it takes the same table (``mean-critic`` to ``max-critic``)."""
-        domain, learn, own = {}, {}, {}
+        unless it takes the same table (``mean-critic`` to ``max-critic``). ``hybrid``
+        names the ``[hybrid]`` learner ("mappo": the table, from its defaults if absent) or
+        "none" (no table); ``hybrid.FIELD`` sets one of its fields."""
+        domain, learn, own, hybrid = {}, {}, {}, {}
         # the fields of a scenario or sensor chosen in the same overrides are domain fields
         domain_names = set(self.domain.flat_dict())
         for section, registry in REGISTRIES.items():
@@ -241,6 +273,8 @@ class RunConfig:
                 domain[name] = value
             elif table == "learn":
                 learn[field] = value
+            elif table == "hybrid" or name == "hybrid":
+                hybrid["learner" if name == "hybrid" else field] = value
             elif table:
                 if field in SHARED_WITH_LEARN:
                     raise ConfigError(name, f"set {field} in [learn] (learn.{field})")
@@ -252,6 +286,15 @@ class RunConfig:
             else:
                 own[(None, name)] = value
         new_learn = self.learn.replace(**learn)
+        new_hybrid = self.hybrid
+        if hybrid.get("learner") == "none":  # hybrid = "none": no [hybrid] table
+            check(len(hybrid) == 1, "hybrid", "is none: no hybrid.FIELD may be set beside it")
+            new_hybrid = None
+        elif hybrid:  # a hybrid.FIELD override starts the table from its defaults if absent
+            try:
+                new_hybrid = (self.hybrid or HybridConfig()).replace(**hybrid)
+            except ConfigError as exc:
+                raise ConfigError(f"hybrid.{exc.field}", exc.message) from None
         cls = settings_class(new_learn.method)
         fields: dict[str, Any] = {}
         for (table, name), value in own.items():
@@ -270,13 +313,14 @@ class RunConfig:
                 )
             fields[name] = value
         if cls is None:
-            return RunConfig(self.domain.replace(**domain), new_learn)
+            return RunConfig(self.domain.replace(**domain), new_learn, None, new_hybrid)
         for name in learn:
             if name in cls.field_names() and name not in SHARED_WITH_LEARN:
                 raise ConfigError(name, f"is in [learn] and [{cls.section}]: write learn.{name} "
                                   f"or {cls.section}.{name}")  # fmt: skip
         base = self.settings if isinstance(self.settings, cls) else cls()
-        return RunConfig(self.domain.replace(**domain), new_learn, base.replace(**fields))
+        return RunConfig(self.domain.replace(**domain), new_learn, base.replace(**fields),
+                         new_hybrid)  # fmt: skip
 
 
 def _move_from_learn(moved: dict[str, Any], table: dict[str, Any], own: type | None,

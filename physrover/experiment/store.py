@@ -44,7 +44,7 @@ from physrover.experiment.metrics_file import (  # noqa: F401  (read_metrics: th
     read_metrics,
 )
 from physrover.experiment.provenance import PROVENANCE, read_provenance, with_segment
-from physrover.learn.ccea import stats_header
+from physrover.learn.stats import stats_header
 
 CONFIG, METRICS, STATE_NPZ, STATE_PREV, STATE_JSON, CHAMPIONS = (
     "config.toml",

@@ -25,7 +25,7 @@ from pathlib import Path
 from physrover.config import RunConfig
 from physrover.core.registry import TRAINERS
 from physrover.experiment.store import METRICS, metrics_columns
-from physrover.learn.ccea import stats_header
+from physrover.learn.stats import stats_header
 
 LEGACY_COLUMNS = stats_header() + ["episodes", "env_steps"]
 """metrics.csv columns of a trainer's run made by physrover 0.4 or 0.5."""

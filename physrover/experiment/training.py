@@ -26,7 +26,8 @@ from physrover.experiment.store import (
     record_provenance,
     resume_run,
 )
-from physrover.learn.ccea import CCEA, GenerationStats, stats_header, stats_row
+from physrover.learn.ccea import CCEA
+from physrover.learn.stats import GenerationStats, stats_header, stats_row
 
 
 def _kernels_cached() -> bool:
@@ -94,7 +95,8 @@ class CCEALearner:
 
     def __init__(self, config: RunConfig, on_generation=None):
         self.config = config
-        self.columns = stats_header(curriculum=config.learn.curriculum_start > 0)
+        self.columns = stats_header(curriculum=config.learn.curriculum_start > 0,
+                                    hybrid=config.hybrid is not None)  # fmt: skip
         self.label = f"{config.learn.method} gen"
         self.total = config.learn.generations
         self.on_generation = on_generation

@@ -25,15 +25,18 @@ so evaluating it alongside generation g's training episodes costs no extra rollo
 checkpoint after generation g (``champions/gen_g.npy``) holds the champion chosen by
 generation g's fitness: the team that generation g + 1 would evaluate.
 
+A ``[hybrid]`` table adds a gradient learner whose actors migrate into the populations
+after evolution (:mod:`physrover.learn.hybrid`).
+
 Random streams, all derived from ``seed``: policy initialisation, team permutations,
-evolution, critic initialisation, critic mini-batches, and the env's per-team start states.
+evolution, critic initialisation, critic mini-batches, the env's per-team start states,
+and the hybrid's (a seventh child, so the first six are a plain run's).
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -48,35 +51,12 @@ from physrover.learn.curriculum import CouplingCurriculum, score_at_coupling
 from physrover.learn.eval_team import BestTeam
 from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.fitness import Problem, make_method
+from physrover.learn.hybrid import Hybrid
 from physrover.learn.kernels import gather_trajectories
 from physrover.learn.rollouts import mean_over_rollouts, repeat_teams
+from physrover.learn.stats import GenerationStats
 from physrover.learn.team_elites import TeamElites
 from physrover.learn.teams import rank_teams, softmax_teams
-
-
-@dataclass(frozen=True)
-class GenerationStats:
-    """One row of metrics.csv."""
-
-    generation: int
-    """The generation's number, counted from 1."""
-    eval_G: float
-    """Mean G of the champion team (chosen by the previous generation; or the previous
-    generation's best team, ``eval_team``) on ``eval_episodes`` fresh episodes: the learning
-    curve."""
-    train_G_mean: float
-    """Mean G over this generation's training episodes (the population's teams)."""
-    fitness_mean: float
-    """Mean fitness the method assigned (D, a critic's value, ...; its scale is the
-    method's own)."""
-    critic_loss: float
-    """The critic's mean squared error in this generation's updates (NaN without a critic)."""
-    wall_seconds: float
-    """Seconds spent in generations since the run started, summed across resumes; includes
-    compiling the kernels on a first run, excludes writing checkpoints."""
-    train_n_req: int = 0
-    """The largest coupling the training episodes were played at, under a coupling
-    curriculum (:mod:`physrover.learn.curriculum`; a metrics.csv column only then)."""
 
 
 class CCEA:
@@ -89,10 +69,11 @@ class CCEA:
         obs_space, action_space = team_spaces(d)  # sizes from the sensor and the domain
         n_obs, n_act = obs_space.shape[-1], action_space.shape[-1]
         self.layout = team_layout(cfg, d)  # one per agent class (learn.classes)
-        seeds = np.random.SeedSequence(cfg.seed).spawn(6)
+        *seeds, hybrid_seq = np.random.SeedSequence(cfg.seed).spawn(7)
         init_rng, self.team_rng, self.evo_rng, critic_init, self.critic_rng, env_seq = [
             np.random.default_rng(s) for s in seeds
         ]
+        self.hybrid = Hybrid(config, hybrid_seq) if config.hybrid is not None else None
         self.genomes = self.layout.init((self.n_rovers, self.k), init_rng)
         self.team_elites = None  # the lab's elite teams (selection = "elites")
         if cfg.selection == "elites" and cfg.n_team_elites > 0:
@@ -239,6 +220,7 @@ class CCEA:
             elites = None if self.team_elites is None else self.team_elites.genomes
             self.best_team.pick(G, self.n_train, self.n_elite_teams, self.genomes, team_index,
                                 elites)  # fmt: skip
+        losers = None  # the tournament's (R, k // 2) overwritten slots
         if cfg.selection == "elites":
             self._evolve_elites(fitness, G, team_index, G_by_policy.mean(axis=0))
         else:
@@ -256,21 +238,16 @@ class CCEA:
             self.carried = fitness.copy()
             self.carried[np.arange(R)[:, None], losers] = np.nan  # the mutated copies
         self.fitness = fitness
+        learner_G = float("nan") if self.hybrid is None else self.hybrid.migrate(
+            self.generation + 1, self.genomes, self.carried, losers)  # fmt: skip
         t_evolution = time.perf_counter()
 
         loss = self.method.update(self.critic_rng)
         end = time.perf_counter()
 
-        for name, seconds in zip(
-            self.timings,
-            (
-                t_rollout - start,
-                t_feedback - t_rollout,
-                t_evolution - t_feedback,
-                end - t_evolution,
-            ),
-            strict=True,
-        ):
+        spans = (t_rollout - start, t_feedback - t_rollout, t_evolution - t_feedback,
+                 end - t_evolution)  # fmt: skip
+        for name, seconds in zip(self.timings, spans, strict=True):
             self.timings[name] += seconds
         self.wall_seconds += end - start
         stats = GenerationStats(
@@ -281,6 +258,7 @@ class CCEA:
             critic_loss=loss,
             wall_seconds=self.wall_seconds,
             train_n_req=train_n_req,
+            learner_G=learner_G,
         )
         self.generation += 1
         return stats
@@ -359,6 +337,9 @@ class CCEA:
         }
         if self.curriculum is not None:
             meta["curriculum"] = self.curriculum.state()
+        if self.hybrid is not None:
+            hybrid_arrays, meta["hybrid"] = self.hybrid.state()
+            arrays.update({f"hybrid/{key}": value for key, value in hybrid_arrays.items()})
         return arrays, json.loads(json.dumps(meta))
 
     def load_state(self, arrays: dict[str, np.ndarray], meta: dict) -> None:
@@ -382,15 +363,6 @@ class CCEA:
         if self.curriculum is not None:
             self.curriculum.load(meta["curriculum"])
             self.env.world.set_coupling(self.curriculum.n_req)
-
-
-def stats_header(curriculum: bool = False) -> list[str]:
-    """metrics.csv's columns: :class:`GenerationStats`' fields, ``train_n_req`` only under a
-    coupling curriculum."""
-    names = [f.name for f in fields(GenerationStats)]
-    return names if curriculum else [n for n in names if n != "train_n_req"]
-
-
-def stats_row(stats: GenerationStats, header: list[str]) -> dict:
-    """A metrics.csv row of ``header``'s columns."""
-    return {name: getattr(stats, name) for name in header}
+        if self.hybrid is not None:
+            hybrid = {k[len("hybrid/") :]: v for k, v in arrays.items() if k.startswith("hybrid/")}
+            self.hybrid.load(hybrid, meta["hybrid"])

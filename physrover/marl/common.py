@@ -261,8 +261,10 @@ class Trainer:
         t = torch.as_tensor(t, dtype=torch.float32)
         return t / self.steps if self.config.time_feature else torch.zeros_like(t)
 
-    def iteration(self) -> dict[str, float]:
-        """Play ``num_envs`` episodes, update, evaluate at logging points; returns the stats.
+    def iteration(self, evaluate: bool = True) -> dict[str, float]:
+        """Play ``num_envs`` episodes, update, evaluate at logging points (never with
+        ``evaluate=False``: a learner inside another loop, :mod:`physrover.learn.hybrid`);
+        returns the stats.
 
         Keys: ``iteration`` (from 1), ``episodes`` and ``env_steps`` (cumulative, training
         only), ``eval_G`` (mean G of the deterministic policies on ``eval_episodes`` fresh
@@ -278,7 +280,7 @@ class Trainer:
         trained = time.perf_counter()
         self.iterations += 1
         eval_G = math.nan
-        if self.iterations % self.config.log_every == 0:
+        if evaluate and self.iterations % self.config.log_every == 0:
             eval_G = self.evaluate()
         self.wall_seconds += time.perf_counter() - start
         return {
