@@ -160,3 +160,19 @@ def test_table_round_trips_and_overrides():
     assert config.with_overrides({"hybrid.episodes": 7}).hybrid.episodes == 7
     assert RunConfig().with_overrides({"hybrid.period": 2}).hybrid.period == 2
     assert RunConfig().hybrid is None
+    # hybrid = "mappo" | "none": a sweep's variants and comparisons switch the table
+    assert (
+        RunConfig().with_overrides({"hybrid": "mappo"}).hybrid
+        == RunConfig.from_toml("[hybrid]").hybrid
+    )
+    assert config.with_overrides({"hybrid": "none"}).hybrid is None
+    with pytest.raises(ConfigError, match="hybrid"):
+        config.with_overrides({"hybrid": "none", "hybrid.period": 2})
+
+
+def test_results_tell_hybrid_runs_apart():
+    from physrover.analysis.curve_data import run_fields
+
+    plain, hybrid = RunConfig(), RunConfig.from_toml("[hybrid]\nperiod = 5")
+    assert run_fields(plain)["hybrid"] == "none" and "hybrid.period" not in run_fields(plain)
+    assert run_fields(hybrid)["hybrid"] == "mappo" and run_fields(hybrid)["hybrid.period"] == 5
