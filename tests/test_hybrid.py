@@ -105,7 +105,7 @@ def test_period_trains_and_migrates_only_every_period_th_generation():
 
 
 def test_run_resumes_bit_identically(tmp_path):
-    config = small(1, mutate=True)
+    config = small(1, mutate=True, **{"hybrid.together": True})  # resumes a fresh migration
     whole = train(config, tmp_path / "whole", progress=False)
     part = train(config, tmp_path / "part", generations=2, progress=False)
     train(None, part, resume=True, generations=4, progress=False)
@@ -176,3 +176,34 @@ def test_results_tell_hybrid_runs_apart():
     plain, hybrid = RunConfig(), RunConfig.from_toml("[hybrid]\nperiod = 5")
     assert run_fields(plain)["hybrid"] == "none" and "hybrid.period" not in run_fields(plain)
     assert run_fields(hybrid)["hybrid"] == "mappo" and run_fields(hybrid)["hybrid.period"] == 5
+
+
+def test_together_puts_the_migrants_in_one_team_of_the_next_generation():
+    ccea = CCEA(small(2, **{"hybrid.together": True, "hybrid.period": 2}))
+    played = []
+    rollout = ccea.rollout
+    ccea.rollout = lambda index: played.append(index.copy()) or rollout(index)
+    for _ in range(4):
+        ccea.run_generation()
+    k = ccea.k
+    for index in played:
+        teams = index[:k]  # the training teams of round 0, (k, R)
+        assert (np.sort(teams, axis=0) == np.arange(k)[:, None]).all()  # still permutations
+    # generation 3 teamed up generation 2's migrants: re-run to read them
+    again = CCEA(small(2, **{"hybrid.together": True, "hybrid.period": 2}))
+    again.run_generation()
+    again.run_generation()
+    np.testing.assert_array_equal(played[2][0], again.hybrid.slots)
+
+
+def test_team_up_swaps_each_migrant_into_team_zero():
+    config = small(0, **{"hybrid.together": True})
+    ccea = CCEA(config)
+    ccea.hybrid.slots, ccea.hybrid.fresh = np.array([3, 0, 7, 5]), True
+    order = np.argsort(np.random.default_rng(0).random((2, 4, 8)), axis=-1)
+    before = order.copy()
+    ccea.hybrid.team_up(order)
+    np.testing.assert_array_equal(order[0, :, 0], [3, 0, 7, 5])
+    np.testing.assert_array_equal(np.sort(order, axis=-1), np.sort(before, axis=-1))
+    np.testing.assert_array_equal(order[1], before[1])  # other rounds untouched
+    assert ((order != before).sum(axis=-1)[0] <= 2).all()  # one swap per rover

@@ -47,6 +47,12 @@ class HybridConfig(ConfigBase):
     mutate: bool = True
     """Mutate each migrant like an offspring ([learn] mutation_rate, mutation_scale,
     mutation; MERL mutates it); false keeps the learner's actor exact."""
+    together: bool = False
+    """In the generation after a migration, the migrants of every rover play together, as
+    one team of the first training round (a swap inside the round's random teams; no extra
+    episode). MERL's default evolves whole teams, so its migrant always plays as a team;
+    with per-rover populations and random teams (false) each migrant plays among policies
+    that are not the learner's."""
     lr: float = 3e-4
     """The learner's Adam learning rate."""
     centralised_critic: bool = True

@@ -155,6 +155,8 @@ class RunConfig:
               "paper's rovers only, not agent classes ([[agents]])")  # fmt: skip
         check(self.learn.activation == "relu", "hybrid", "the learner's actor is ReLU then "
               'tanh: set [learn] activation = "relu"')  # fmt: skip
+        check(not hybrid.together or self.learn.method != "hall-of-fame", "hybrid.together",
+              "the hall of fame plays each policy with the best team, not in random teams")
         try:
             CREDITS[hybrid.reward].check(self.domain)
         except ConfigError as exc:

@@ -18,7 +18,9 @@ Multiagent Coordination" (ICML; code ShawK91/MERL, read in
    no fitness (NaN) until it plays.
 
 The migrant then plays in the next generation's random teams and competes on the run's
-fitness like any offspring. Nothing flows back: the learner never sees the populations.
+fitness like any offspring; with ``together`` the rovers' migrants form one team of that
+generation's first round (:meth:`Hybrid.team_up`), as MERL's whole-team migrant always
+plays. Nothing flows back: the learner never sees the populations.
 
 Departures from MERL, stated: MERL's learners are off-policy TD3 fed by the evolutionary
 episodes too; MAPPO is on-policy, so the learner learns from its own episodes only. MERL's
@@ -67,6 +69,19 @@ class Hybrid:
         (its stochastic policy; NaN before the first)."""
         self.slots: np.ndarray | None = None
         """(R,) the slot each rover's migrant went into, in the latest migration."""
+        self.fresh = False
+        """Whether the latest generation migrated (the next one's teams may team them up)."""
+
+    def team_up(self, order: np.ndarray) -> None:
+        """With ``together``, in the generation after a migration: swap, in each rover's row
+        of round 0 of the team plan ``order`` (rounds, R, k; in place), its migrant into
+        team 0, so the migrants play as one team. The other teams keep their random
+        members (one swap per rover; no random draw)."""
+        if not (self.config.hybrid.together and self.fresh):
+            return
+        rows = np.arange(order.shape[1])
+        team = np.argmax(order[0] == self.slots[:, None], axis=1)  # the migrant's team
+        order[0, rows, team], order[0, rows, 0] = order[0, rows, 0], self.slots
 
     def due(self, generation: int) -> bool:
         """Whether generation ``generation`` (counted from 1) migrates."""
@@ -89,7 +104,8 @@ class Hybrid:
         into a random one of :meth:`open_slots` of each rover r's population ``genomes``
         (R, k, P), in place; in ``carried`` (R, k) the migrants' fitness becomes NaN.
         Returns :attr:`learner_G` of this generation (NaN if it did not migrate)."""
-        if not self.due(generation):
+        self.fresh = self.due(generation)
+        if not self.fresh:
             return math.nan
         hybrid, learn = self.config.hybrid, self.config.learn
         open_slots = self.open_slots(losers, genomes.shape[0])
@@ -109,10 +125,14 @@ class Hybrid:
         """(arrays, meta) to continue bit-identically: the learner's and the generator's."""
         arrays, meta = self.learner.state()
         learner_G = None if math.isnan(self.learner_G) else self.learner_G  # JSON has no NaN
+        slots = None if self.slots is None else self.slots.tolist()
         return arrays, {"learner": meta, "rng": self.rng.bit_generator.state,
-                        "learner_G": learner_G}  # fmt: skip
+                        "learner_G": learner_G, "slots": slots, "fresh": self.fresh}  # fmt: skip
 
     def load(self, arrays: dict[str, np.ndarray], meta: dict) -> None:
         self.learner.load_state(arrays, meta["learner"])
         self.rng.bit_generator.state = meta["rng"]
         self.learner_G = math.nan if meta["learner_G"] is None else float(meta["learner_G"])
+        slots = meta.get("slots")  # absent from checkpoints of physrover before 'together'
+        self.slots = None if slots is None else np.array(slots, dtype=np.int64)
+        self.fresh = bool(meta.get("fresh", False))
