@@ -156,7 +156,7 @@ class RunConfig:
         check(self.learn.activation == "relu", "hybrid", "the learner's actor is ReLU then "
               'tanh: set [learn] activation = "relu"')  # fmt: skip
         check(not hybrid.together or self.learn.method != "hall-of-fame", "hybrid.together",
-              "the hall of fame plays each policy with the best team, not in random teams")
+              "needs teams drawn at random, not the hall of fame's")  # fmt: skip
         try:
             CREDITS[hybrid.reward].check(self.domain)
         except ConfigError as exc:
