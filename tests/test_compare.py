@@ -99,6 +99,21 @@ def test_a_field_the_base_lacks_does_not_filter_the_other_side():
     ]  # fmt: skip
 
 
+def test_a_cell_field_some_runs_lack_does_not_filter_them():
+    # hybrid-screen: hybrid.period is a cell field (1 or 5 among the hybrid runs); G's runs
+    # without a hybrid lack it and are compared in its cell, not left in one of their own
+    runs = [{**r, "period": ""} for r in RUNS if r["method"] == "D" and r["feedback"] == "D"]
+    runs += [{**r, "period": "1"} for r in RUNS if r["method"] == "G"]
+    runs += [{**r, "method": "G", "period": "5"} for r in runs[:1]]  # one G run at period 5
+    comparison = {"a": {"method": "G"}, "b": {"method": "D"}}
+    rows, skipped = planned_comparisons(runs, [comparison], DEFAULTS, ["n_req", "period"])
+    assert [(r["cell"], r["n_A"], r["n_B"]) for r in rows] == [
+        (f"n_req={n} period=1", 3, 3) for n in (1, 2, 3)
+    ]  # fmt: skip
+    # period 5 is a cell of its own for the runs that have it (1 against 3: not compared)
+    assert len(skipped) == 1 and "n_req=1 period=5: 1 and 3 runs" in skipped[0]
+
+
 def test_a_claims_side_is_pinned_to_the_defaults_it_leaves_out():
     doc = {"defaults": {"feedback": "D", "motion": "ideal", "variant": ""},
            "labels": {"n_rovers": "rovers"}, "grid": ["n_req", "n_rovers"],

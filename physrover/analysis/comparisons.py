@@ -16,7 +16,9 @@ and is made in every cell of the other grid fields (each ``n_req``, say; only th
 runs (:func:`compare_samples`: means, the exact two-sided permutation p-value, Welch's t,
 Hedges' g, the fraction of runs that learn). A field one side names and the other leaves
 out takes, on that other side, the value the base gives it; where the base has none (a
-setting of one method's own table, say), the other side is not filtered on it. Runs are
+setting of one method's own table, say), the other side is not filtered on it. Likewise a
+cell's field that a run lacks (``hybrid.period`` of a run without a hybrid) does not
+filter that run, so it is compared in each cell of that field. Runs are
 matched on their own configs. The p-values of a sweep's comparisons are adjusted together
 by Holm's method, one family: the comparisons a study planned before it ran, stated in its
 file, not chosen afterwards.
@@ -72,6 +74,9 @@ def _cells(comparison: dict, runs: list[dict], grid: list[str], named: set[str],
     else:
         found = {tuple(run.get(f, defaults.get(f, "")) for f in fields) for run in runs}
         combos = [dict(zip(fields, v, strict=True)) for v in found]
+        # a field some runs lack (``hybrid.period`` of a run without a hybrid) filters only
+        # the runs that have it: no cell of its own for the runs without it
+        combos = [c for c in combos if "" not in c.values()] or combos
     cells = [(" ".join(f"{f}={v}" for f, v in c.items()) or "all runs", c) for c in combos]
     return cells if where else sorted(cells, key=lambda cell: cell[0])
 
@@ -93,8 +98,8 @@ def compare_cells(runs: list[dict], comparisons, defaults: dict[str, str], grid:
         for cell, values in _cells(comparison, runs, grid, named, defaults):
             scores = {"a": [], "b": []}
             for run in runs:
-                if any(run.get(f, defaults.get(f, "")) != v for f, v in values.items()):
-                    continue
+                if any(run.get(f, defaults.get(f, "")) not in (v, "") for f, v in values.items()):
+                    continue  # (a run without the field is not filtered on it)
                 for side, want in wanted.items():
                     if all(run.get(f, defaults.get(f)) == v for f, v in want.items()):
                         scores[side].append(float(run["final_G"]))
