@@ -199,10 +199,12 @@ def test_together_puts_the_migrants_in_one_team_of_the_next_generation():
 def test_team_up_swaps_each_migrant_into_team_zero():
     config = small(0, **{"hybrid.together": True})
     ccea = CCEA(config)
-    ccea.hybrid.slots, ccea.hybrid.fresh = np.array([3, 0, 7, 5]), True
+    ccea.hybrid.slots = np.array([3, 0, 7, 5])
     order = np.argsort(np.random.default_rng(0).random((2, 4, 8)), axis=-1)
     before = order.copy()
-    ccea.hybrid.team_up(order)
+    ccea.hybrid.team_up(order, 0)  # no generation run yet: nothing migrated
+    np.testing.assert_array_equal(order, before)
+    ccea.hybrid.team_up(order, 1)  # generation 1 migrated (period 1)
     np.testing.assert_array_equal(order[0, :, 0], [3, 0, 7, 5])
     np.testing.assert_array_equal(np.sort(order, axis=-1), np.sort(before, axis=-1))
     np.testing.assert_array_equal(order[1], before[1])  # other rounds untouched

@@ -190,7 +190,7 @@ class CCEA:
         else:
             order = self.method.plan(self.team_rng, R, k)
         if self.hybrid is not None:  # [hybrid] together: the last migrants in one team
-            self.hybrid.team_up(order)
+            self.hybrid.team_up(order, self.generation)
         team_index = order.transpose(0, 2, 1).reshape(rounds * k, R)
         played = repeat_teams(np.concatenate([team_index, self._elite_index()]), cfg.rollouts)
         G, credit = self.rollout(np.concatenate([played, self._evaluated_index()]))

@@ -69,15 +69,14 @@ class Hybrid:
         (its stochastic policy; NaN before the first)."""
         self.slots: np.ndarray | None = None
         """(R,) the slot each rover's migrant went into, in the latest migration."""
-        self.fresh = False
-        """Whether the latest generation migrated (the next one's teams may team them up)."""
 
-    def team_up(self, order: np.ndarray) -> None:
-        """With ``together``, in the generation after a migration: swap, in each rover's row
-        of round 0 of the team plan ``order`` (rounds, R, k; in place), its migrant into
-        team 0, so the migrants play as one team. The other teams keep their random
-        members (one swap per rover; no random draw)."""
-        if not (self.config.hybrid.together and self.fresh):
+    def team_up(self, order: np.ndarray, completed: int) -> None:
+        """With ``together``, in the generation after a migration (``completed``, the
+        generations run so far, migrated): swap, in each rover's row of round 0 of the team
+        plan ``order`` (rounds, R, k; in place), its migrant into team 0, so the migrants
+        play as one team. The other teams keep their random members (one swap per rover;
+        no random draw)."""
+        if not (self.config.hybrid.together and completed > 0 and self.due(completed)):
             return
         rows = np.arange(order.shape[1])
         team = np.argmax(order[0] == self.slots[:, None], axis=1)  # the migrant's team
@@ -104,8 +103,7 @@ class Hybrid:
         into a random one of :meth:`open_slots` of each rover r's population ``genomes``
         (R, k, P), in place; in ``carried`` (R, k) the migrants' fitness becomes NaN.
         Returns :attr:`learner_G` of this generation (NaN if it did not migrate)."""
-        self.fresh = self.due(generation)
-        if not self.fresh:
+        if not self.due(generation):
             return math.nan
         hybrid, learn = self.config.hybrid, self.config.learn
         open_slots = self.open_slots(losers, genomes.shape[0])
@@ -127,7 +125,7 @@ class Hybrid:
         learner_G = None if math.isnan(self.learner_G) else self.learner_G  # JSON has no NaN
         slots = None if self.slots is None else self.slots.tolist()
         return arrays, {"learner": meta, "rng": self.rng.bit_generator.state,
-                        "learner_G": learner_G, "slots": slots, "fresh": self.fresh}  # fmt: skip
+                        "learner_G": learner_G, "slots": slots}  # fmt: skip
 
     def load(self, arrays: dict[str, np.ndarray], meta: dict) -> None:
         self.learner.load_state(arrays, meta["learner"])
@@ -135,4 +133,3 @@ class Hybrid:
         self.learner_G = math.nan if meta["learner_G"] is None else float(meta["learner_G"])
         slots = meta.get("slots")  # absent from checkpoints of physrover before 'together'
         self.slots = None if slots is None else np.array(slots, dtype=np.int64)
-        self.fresh = bool(meta.get("fresh", False))
