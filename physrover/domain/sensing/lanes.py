@@ -56,6 +56,9 @@ class Lanes(NamedTuple):
     left to it)."""
     block: np.ndarray
     """(R,) int64: the first channel of agent j's terms, the same for every observer."""
+    runs: np.ndarray
+    """(n + 1,) int64: the agents in runs of one block, run m from ``runs[m]`` to
+    ``runs[m + 1]`` (a class is a run, or several classes that share channels)."""
     poi_base: int
     """The first channel of the POIs' terms."""
     n_channels: int
@@ -65,7 +68,8 @@ class Lanes(NamedTuple):
 def no_lanes() -> Lanes:
     """The :class:`Lanes` of a team that is sensed agent by agent."""
     empty_f, empty_i = np.zeros(0), np.zeros(0, np.int64)
-    return Lanes(False, empty_f, np.zeros((0, 0)), empty_f, np.zeros(0, bool), empty_i, 0, 0)
+    return Lanes(False, empty_f, np.zeros((0, 0)), empty_f, np.zeros(0, bool), empty_i,
+                 np.zeros(1, np.int64), 0, 0)  # fmt: skip
 
 
 def build_lanes(rows: list[tuple], n_pois: int) -> Lanes:
@@ -89,7 +93,10 @@ def build_lanes(rows: list[tuple], n_pois: int) -> Lanes:
         empty[first:stop] = value
         sensed[first:stop] = True
         block, poi_base, n_channels = np.asarray(agent_base, np.int64), int(base), int(size)
-    return Lanes(True, radius_sq, poi_radius_sq, empty, sensed, block, poi_base, n_channels)
+    starts = [j for j in range(n_agents) if j == 0 or block[j] != block[j - 1]]
+    runs = np.array([*starts, n_agents], np.int64)
+    return Lanes(True, radius_sq, poi_radius_sq, empty, sensed, block, runs, poi_base,
+                 n_channels)  # fmt: skip
 
 
 @jit
@@ -127,22 +134,25 @@ def sense_lanes(e, state, lanes, d_min_sq, scratch, obs):
     # The two loops differ only in the numerator, who is seen and the block; as in the
     # density sensor, they stay written out so that LLVM vectorises both (a count of what
     # each channel saw, four more sums, stopped it: 6.0 ms instead of 2.6 for 50 teams
-    # sensed 50 times).
-    for j in range(n_agents):  # the agents by index, numerator 1
-        xj, yj = positions[e, j, 0], positions[e, j, 1]
-        q0 = 4 + lanes.block[j]
+    # sensed 50 times). The agents go by runs of one block, its four rows chosen once a
+    # run: chosen for every agent, the agents' loop took 2.5 ms of the 3.6 that 60 mixed
+    # teams' sensing over an episode's 51 layouts costs, 1.5 by runs (2026-12-06).
+    for m in range(lanes.runs.shape[0] - 1):  # the agents by index, numerator 1
+        q0 = 4 + lanes.block[lanes.runs[m]]
         a0, a1, a2, a3 = scratch[q0], scratch[q0 + 1], scratch[q0 + 2], scratch[q0 + 3]
-        for i in range(width):
-            dx = xj - px[i]
-            dy = yj - py[i]
-            dist_sq = dx * dx + dy * dy
-            seen = (dist_sq <= reach[i]) & (i != j)
-            w = 1.0 / max(dist_sq, d_min_sq) if seen else 0.0  # Eq. 14
-            q = quadrant(cs[i] * dx + sn[i] * dy, cs[i] * dy - sn[i] * dx)
-            a0[i] += w if q == 0 else 0.0
-            a1[i] += w if q == 1 else 0.0
-            a2[i] += w if q == 2 else 0.0
-            a3[i] += w if q == 3 else 0.0
+        for j in range(lanes.runs[m], lanes.runs[m + 1]):
+            xj, yj = positions[e, j, 0], positions[e, j, 1]
+            for i in range(width):
+                dx = xj - px[i]
+                dy = yj - py[i]
+                dist_sq = dx * dx + dy * dy
+                seen = (dist_sq <= reach[i]) & (i != j)
+                w = 1.0 / max(dist_sq, d_min_sq) if seen else 0.0  # Eq. 14
+                q = quadrant(cs[i] * dx + sn[i] * dy, cs[i] * dy - sn[i] * dx)
+                a0[i] += w if q == 0 else 0.0
+                a1[i] += w if q == 1 else 0.0
+                a2[i] += w if q == 2 else 0.0
+                a3[i] += w if q == 3 else 0.0
     q0 = 4 + lanes.poi_base
     a0, a1, a2, a3 = scratch[q0], scratch[q0 + 1], scratch[q0 + 2], scratch[q0 + 3]
     for k in range(poi_positions.shape[1]):  # then the POIs in sight, numerator V_k
