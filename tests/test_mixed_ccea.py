@@ -101,6 +101,22 @@ def test_a_steering_team_plays_as_one_padded_network_bit_for_bit(seed):
         assert played[0][1].shape == (8,)
 
 
+def test_classes_of_one_width_are_played_as_laid_out():
+    """Where every class reads as many inputs as the widest, the padded layout is the
+    genomes' own: each entry where the general re-layout puts it."""
+    domain = DomainConfig.from_toml(MIXED.split("[learn]")[0].replace(", sectors = 3", ""))
+    layouts = ClassLayouts(5, domain)
+    assert {layout.n_in for layout in layouts.layouts} == {layouts.n_in}
+    genomes = layouts.init((5, 8), np.random.default_rng(0)).transpose(1, 0, 2)
+    H, D = 5, layouts.n_in
+    expected = np.zeros_like(genomes)
+    for rows, layout in zip(layouts.rows, layouts.layouts, strict=True):
+        w1 = layout.n_in * H
+        expected[:, rows, :w1] = genomes[:, rows, :w1]
+        expected[:, rows, D * H :] = genomes[:, rows, w1 : w1 + 3 * H + 2]
+    assert np.array_equal(layouts.padded(genomes), expected)
+
+
 def test_the_env_takes_classes_with_padded_observations():
     env = RoverEnv(config=DomainConfig.from_toml(MIXED.split("[learn]")[0]))
     assert env.observation_space.shape == (5, 8) and env.observation_space.low.min() == -1.0
