@@ -77,8 +77,8 @@ class ClassLayouts:
         """(E, R, P_D) float32 genomes of ``D -> hidden -> 2`` networks (D = ``n_in``, the
         widest class's) from (E, R, P) class genomes: a class's ``W1 (n_in_c x H)`` in the
         first rows of ``W1 (D x H)``, zero rows after, then its ``b1 | W2 | b2``."""
-        if all(layout.n_in == self.n_in for layout in self.layouts):
-            return genomes  # every class as wide as the widest: already laid out
+        if all(layout.n_in == self.n_in for layout in self.layouts):  # already laid out
+            return np.asarray(genomes, dtype=np.float32)  # (not a copy if float32 already)
         H = self.hidden
         rest = H + 2 * H + 2  # b1 | W2 | b2
         out = np.zeros((*genomes.shape[:2], self.n_in * H + rest), dtype=np.float32)
