@@ -3,6 +3,7 @@
 - :mod:`~physrover.core.registry`: the named registries (fitness methods, credit signals,
   scenarios, sensors, motion models, trainers) that config, CLI, plots and docs all read;
 - :mod:`~physrover.core.compiled`: numba's on-disk cache of the compiled kernels;
+- :mod:`~physrover.core.streams`: numpy generators' draws read inside compiled kernels;
 - :mod:`~physrover.core.threads`: pinning BLAS, OpenMP and torch to a number of threads;
 - :mod:`~physrover.core.progress`: progress bars of long runs;
 - :mod:`~physrover.core.plugins`: ``--import`` of a researcher's own parts;

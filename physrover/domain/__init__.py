@@ -2,6 +2,7 @@
 
 - ``state``: the one :class:`~physrover.domain.state.WorldState` of E teams;
 - ``scenarios``: the start state of every episode (POI layouts, spawns, obstacles);
+- ``layouts``: the scenarios' random POI layouts, compiled, from each team's generator;
 - ``agents/``: agent classes and a class's motion rule (gate, speed, frame, bounds);
 - ``motion/``: the motion models (the paper's idealised kinematics, physical bodies);
 - ``sensing/``: what agents observe (the paper's density sensor, the lidar, class views);

@@ -49,6 +49,7 @@ import numpy as np
 
 from physrover.config import Component, check, check_choice
 from physrover.core.registry import SCENARIOS
+from physrover.domain.layouts import uniform_layouts
 from physrover.domain.obstacles import capsules, check_obstacles, reach
 
 
@@ -298,30 +299,11 @@ class Uniform(SpawnDisc):
         )
 
     def pois(self, rngs, n_pois):
-        return np.stack([self._team_pois(rng, n_pois) for rng in rngs])
-
-    def _team_pois(self, rng: np.random.Generator, k: int) -> np.ndarray:
-        """(K, 2): POIs drawn one after another, each redrawn until it is min_separation
-        from those before it; after ``MAX_TRIES`` failed draws of one POI the whole layout
-        starts again (a bad early placement can leave no room), up to ``MAX_TRIES`` times."""
-        half, gap = self.half_size, self.min_separation
-        for _ in range(self.MAX_TRIES):
-            out: list[tuple[float, float]] = []  # Python floats: a draw costs a numpy call
-            while len(out) < k:
-                for _ in range(self.MAX_TRIES):
-                    u, v = rng.random(2).tolist()
-                    p = (half * (2.0 * u - 1.0), half * (2.0 * v - 1.0))
-                    if all(math.hypot(x - p[0], y - p[1]) >= gap for x, y in out):
-                        break
-                else:
-                    break  # no room for this POI: start the layout again
-                out.append(p)
-            if len(out) == k:
-                return np.array(out)
-        raise RuntimeError(
-            f"uniform scenario: no layout of {k} POIs {self.min_separation} apart in "
-            f"{self.MAX_TRIES} attempts; lower min_separation or raise half_size"
-        )
+        """Each POI redrawn until it is min_separation from those before it; after
+        ``MAX_TRIES`` failed draws of one POI the whole layout starts again (a bad early
+        placement can leave no room), up to ``MAX_TRIES`` times
+        (:func:`~physrover.domain.layouts.uniform_layouts`, compiled)."""
+        return uniform_layouts(rngs, n_pois, self.half_size, self.min_separation, self.MAX_TRIES)
 
     def poi_extent(self) -> float:
         return self.half_size * np.sqrt(2.0)
