@@ -77,3 +77,5 @@ def test_a_dense_layout_restarts_and_an_impossible_one_fails_in_one_line():
     np.testing.assert_array_equal(uniform_layouts(rngs, 10, 15.0, 8.5, 200), expected)
     with pytest.raises(RuntimeError, match="no layout of 5 POIs 3.0 apart in 7 attempts"):
         uniform_layouts([np.random.default_rng(0)], 5, 1.0, 3.0, 7)
+    with pytest.raises(TypeError, match="expected numpy.random.Generator objects, got RandomState"):
+        uniform_layouts([np.random.RandomState(0)], 4, 15.0, 8.0, 200)

@@ -39,6 +39,8 @@ def stream_handles(rngs: Sequence[np.random.Generator]) -> np.ndarray:
     and of the state that function takes (row e for ``rngs[e]``)."""
     out = np.empty((len(rngs), 2), dtype=np.int64)
     for e, rng in enumerate(rngs):
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"expected numpy.random.Generator objects, got {type(rng).__name__}")
         interface = rng.bit_generator.ctypes
         kind = type(rng.bit_generator)
         fn = _functions.get(kind)
