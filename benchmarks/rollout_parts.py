@@ -12,7 +12,10 @@ Prints the median ms of each, one thread.
 
 Why in one process: on a shared host the same command's median differs by 10-40% from
 one process to the next (seen 2026-12-06: 15.5 and 21.6 ms for one D generation), more
-than most changes this measures; interleaving within a process cancels it.
+than most changes this measures; interleaving within a process cancels it. What it does
+not cancel: each variant is its own compiled episode, and where its code lands moves it by
+up to ~1 ms (the same "no roles" variant took 10.1 ms in one build and 11.1 in another that
+differed only in code the variant never runs), so read a part's cost to about 1 ms.
 """
 
 from __future__ import annotations
