@@ -266,7 +266,7 @@ def test_the_standing_table_on_the_site_is_the_committed_cells():
     of the sweep its row names (mean and 95% interval, as rounded there)."""
     cells = {}
     for path in ("cells.md", "standing-table/cells.md", "standing-table-low/cells.md",
-                 "step-target-long/cells.md"):  # fmt: skip
+                 "step-target-long/cells.md", "standing-table-winner/cells.md"):  # fmt: skip
         sweep = None
         for line in (ROOT / "experiments/results" / path).read_text().splitlines():
             if line.startswith("### "):
@@ -278,6 +278,8 @@ def test_the_standing_table_on_the_site_is_the_committed_cells():
                 feedback = parts[2] if sweep == "standing-table" else "D"
                 if sweep == "step-target-long":  # feedback and the critic's target
                     feedback = f"{parts[2]}/{parts[3]}"
+                elif sweep == "standing-table-winner":  # D++, per-step targets: the file's base
+                    feedback = "D++/step"
                 cells[sweep, parts[0], feedback, int(parts[1])] = parts[-2]
     rows = {"D": ("D", "D"), "G": ("G", "D"), "D on D++": ("D", "D++"),
             "average of 10 episodes": ("average", "D"), "mean critic": ("mean-critic", "D"),
