@@ -18,7 +18,7 @@ from physrover.experiment.training import train
 from physrover.learn.ccea import CCEA
 from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.team_elites import TeamElites
-from physrover.learn.teams import rank_teams, softmax_teams
+from physrover.learn.teams import rank_teams, softmax_teams, team_genomes
 
 FITNESS = [0.0, 1.0, 2.5, 0.5]
 
@@ -209,6 +209,26 @@ def test_resume_with_softmax_and_elites_is_bit_identical(tmp_path, lab):
     part = train(config, tmp_path / "part", generations=4, progress=False)
     train(None, part, resume=True, generations=7, progress=False)
     assert_same_run(full, part)
+
+
+def test_team_genomes_gather_as_the_plain_loop_and_reuse_their_array():
+    rng = np.random.default_rng(3)
+    n_rovers, k, size, n_teams = 4, 6, 5, 9
+    table = rng.standard_normal((n_rovers, k, size)).astype(np.float32)
+    index = rng.integers(0, k, (n_teams, n_rovers))
+    expected = np.empty((n_teams, n_rovers, size), np.float32)
+    for e in range(n_teams):
+        for r in range(n_rovers):
+            expected[e, r] = table[r, index[e, r]]
+    out = team_genomes(table, index)
+    np.testing.assert_array_equal(out, expected)
+    again = team_genomes(table[:, ::-1], index, out)  # a strided table, the same array back
+    assert again is out
+    np.testing.assert_array_equal(again, table[:, ::-1][np.arange(n_rovers), index])
+    assert team_genomes(table, index[:3], out).shape == (3, n_rovers, size)  # new shape, new
+    for bad in (index + k, index - k, index[:, :3]):
+        with pytest.raises(IndexError, match="out of range"):
+            team_genomes(table, bad)
 
 
 def test_rank_teams_zip_each_population_sorted_as_the_lab_does():

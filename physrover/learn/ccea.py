@@ -56,7 +56,7 @@ from physrover.learn.kernels import gather_trajectories
 from physrover.learn.rollouts import mean_over_rollouts, repeat_teams
 from physrover.learn.stats import GenerationStats
 from physrover.learn.team_elites import TeamElites
-from physrover.learn.teams import rank_teams, softmax_teams
+from physrover.learn.teams import rank_teams, softmax_teams, team_genomes
 
 
 class CCEA:
@@ -75,6 +75,7 @@ class CCEA:
         ]
         self.hybrid = Hybrid(config, hybrid_seq) if config.hybrid is not None else None
         self.genomes = self.layout.init((self.n_rovers, self.k), init_rng)
+        self._team_genomes = None  # the teams' (E, R, P) genomes, one array reused
         self.team_elites = None  # the lab's elite teams (selection = "elites")
         if cfg.selection == "elites" and cfg.n_team_elites > 0:
             self.team_elites = TeamElites(cfg.n_team_elites, self.genomes, self.team_rng)
@@ -119,7 +120,6 @@ class CCEA:
         Index k and above address the method's extra genomes (the hall of fame), if any,
         then the elite teams (:meth:`_elite_index`).
         """
-        rovers = np.arange(self.n_rovers)
         table = self.genomes
         extra = self.method.extra_genomes()
         if extra is not None:
@@ -128,7 +128,8 @@ class CCEA:
             table = np.concatenate([table, self.team_elites.table()], axis=1)
         if self._plays_best_team():
             table = np.concatenate([table, self.best_team.genomes[:, None]], axis=1)
-        policy = self.layout.prepare(table[rovers[None, :], genome_index])  # (E, R, P) genomes
+        self._team_genomes = team_genomes(table, genome_index, self._team_genomes)
+        policy = self.layout.prepare(self._team_genomes)  # (E, R, P) genomes
         world = self.env.play_episode(policy, headings=False)  # the CCEA reads no angle
         return world.G.copy(), np.array(self.credit(world), dtype=np.float64)
 

@@ -48,3 +48,31 @@ def rank_teams(fitness: np.ndarray, rounds: int) -> np.ndarray:
     f = np.nan_to_num(np.asarray(fitness, dtype=np.float64), nan=0.0)
     order = np.argsort(-f, axis=-1, kind="stable")
     return np.broadcast_to(order, (rounds, *order.shape)).copy()
+
+
+def team_genomes(table: np.ndarray, index: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """(E, R, P) the genome each rover plays in each team, ``table[r, index[e, r]]``, from
+    (R, K, P) genomes and (E, R) int indices < K.
+
+    Written into ``out`` when it is a C-contiguous array of that shape and dtype, else
+    into a new one (returned either way): a learner keeps the array from one generation to
+    the next, since the operating system hands a fresh 1-2 MB array out page by page, a
+    page fault per 4 KiB, about a millisecond a generation on the 15-agent mixed team.
+    """
+    n_rovers, k, size = table.shape
+    n_teams = index.shape[0]
+    if index.shape != (n_teams, n_rovers) or not (0 <= index.min() and index.max() < k):
+        raise IndexError(f"team index of shape {index.shape} out of range for {k} genomes "
+                         f"of {n_rovers} rovers")  # fmt: skip
+    shape = (n_teams, n_rovers, size)
+    if out is None or out.shape != shape or out.dtype != table.dtype or not out.flags.c_contiguous:
+        out = np.empty(shape, dtype=table.dtype)
+    rows = np.arange(n_rovers) * k + index  # rows of the flattened (R * K, P) table
+    np.take(
+        np.ascontiguousarray(table).reshape(n_rovers * k, size),
+        rows.reshape(-1),
+        axis=0,
+        out=out.reshape(n_teams * n_rovers, size),
+        mode="clip",
+    )  # checked above
+    return out
