@@ -4,6 +4,7 @@
   scenarios, sensors, motion models, trainers) that config, CLI, plots and docs all read;
 - :mod:`~physrover.core.compiled`: numba's on-disk cache of the compiled kernels;
 - :mod:`~physrover.core.streams`: numpy generators' draws read inside compiled kernels;
+- :mod:`~physrover.core.borrow`: a kernel's arrays without numba's atomic reference counts;
 - :mod:`~physrover.core.threads`: pinning BLAS, OpenMP and torch to a number of threads;
 - :mod:`~physrover.core.progress`: progress bars of long runs;
 - :mod:`~physrover.core.plugins`: ``--import`` of a researcher's own parts;

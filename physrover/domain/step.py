@@ -37,6 +37,7 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
+from physrover.core.borrow import borrowed
 from physrover.core.compiled import jit, jit_inline
 from physrover.domain.agents.failures import silence
 from physrover.domain.motion.ideal import all_commands_ok, commands_ok, move_team
@@ -159,7 +160,8 @@ def step_teams(commands, t, plan, actions, obs, positions, headings, *state):
     are inlined into it). Returns False, having changed nothing, if a command is NaN."""
     if not all_commands_ok(commands):
         return False
-    st = WorldState(*state)
+    st, plan = borrowed((WorldState(*state), plan))  # no atomic reference counts (core.borrow)
+    actions, obs, positions, headings = borrowed((actions, obs, positions, headings))
     scratch = step_scratch(plan, st.cos_h.shape[1])
     for e in range(st.cos_h.shape[0]):
         step_team(e, t, commands, plan, st, actions, obs, positions, headings, True, scratch,
@@ -178,7 +180,8 @@ def step_teams_at(commands, t, plan, actions, obs, positions, headings, *state):
     for e in range(commands.shape[0]):
         if t[e] > 0 and not commands_ok(commands[e]):
             return False
-    st = WorldState(*state)
+    st, plan = borrowed((WorldState(*state), plan))  # no atomic reference counts (core.borrow)
+    actions, obs, positions, headings = borrowed((actions, obs, positions, headings))
     scratch = step_scratch(plan, st.cos_h.shape[1])
     for e in range(st.cos_h.shape[0]):
         te = t[e]

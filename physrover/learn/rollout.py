@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from physrover.core.borrow import borrowed
 from physrover.core.compiled import dims, jit
 from physrover.domain.motion.ideal import commands_ok
 from physrover.domain.state import WorldState
@@ -73,7 +74,9 @@ def policy_episode(genomes, hidden, tanh_hidden, in_dims, headings, plan, observ
     ``*state`` is the world's :class:`~physrover.domain.state.WorldState`, arrays one by
     one. Returns False if a policy gives a NaN command (the world is then mid-episode:
     reset it)."""
-    st = WorldState(*state)
+    st, plan = borrowed((WorldState(*state), plan))  # no atomic reference counts (core.borrow)
+    genomes, observations, actions = borrowed((genomes, observations, actions))
+    position_history, heading_history = borrowed((position_history, heading_history))
     n_teams, n_rovers = st.cos_h.shape
     steps = observations.shape[0]
     h = np.empty(hidden, np.float32)
