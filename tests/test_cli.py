@@ -329,6 +329,34 @@ def test_bench_train_reports_median_spread_and_phases():
     assert {part.split()[0] for part in found.group(4).split(", ")} >= {"rollout", "critic"}
 
 
+def test_bench_train_against_interleaves_two_configs_and_states_their_ratios(capsys, tmp_path):
+    """``--against``: both configs' medians and their ratios per phase (format and
+    arithmetic; no timing asserted), and a one-line error for a benchmark it does not
+    time."""
+    import re
+
+    wide = tmp_path / "wide.toml"
+    wide.write_text("[sensor]\nsectors = 6\n")
+    args = ["bench", "train", "--methods", "D", "--repeats", "3", "--config", str(wide),
+            "--against", "paper", "--set", "n_rovers=3", "--set", "n_req=1",
+            "--set", "population=6", "--set", "steps=5"]  # fmt: skip
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    (line,) = [row for row in out.splitlines() if row.startswith("D ")]
+    parts = re.findall(r"(\w+) ([\d.]+) / ([\d.]+)(?: = ([\d.]+)x)?", line)
+    assert {name for name, *_ in parts} == {"generation", "rollout", "feedback", "evolution",
+                                            "critic"}  # fmt: skip
+    for name, ours, theirs, ratio in parts:  # the ratio of the medians before rounding
+        if ratio:
+            ours, theirs = float(ours), float(theirs)
+            low, high = (ours - 0.05) / (theirs + 0.05), (ours + 0.05) / (theirs - 0.05)
+            assert low - 0.005 <= float(ratio) <= high + 0.005, name
+    assert main(["bench", "world", "--against", "paper"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "physrover: error: --against times 'bench train', not 'bench world'"
+    )
+
+
 def test_bench_envs_drives_every_torchrl_env_with_the_actions_drawn_beforehand():
     """The throughput table times the envs, not the drawing of actions: the policy writes
     its bank of pre-drawn actions in turn, episode after episode."""

@@ -29,9 +29,11 @@ class Interrupted(Exception):
     """Ctrl-C, with what was saved and how to continue: printed as one line, status 130."""
 
 
-def _run_config(args: argparse.Namespace) -> RunConfig:
-    """RunConfig from ``--config FILE`` ([domain] and [learn]), ``--set`` and shortcut flags."""
-    config = RunConfig.load(args.config) if getattr(args, "config", None) else RunConfig()
+def _run_config(args: argparse.Namespace, path: str | None = None) -> RunConfig:
+    """RunConfig from ``--config FILE`` ([domain] and [learn]) or ``path`` (``"paper"``:
+    the defaults), ``--set`` and shortcut flags."""
+    path = getattr(args, "config", None) if path is None else path
+    config = RunConfig.load(path) if path and path != "paper" else RunConfig()
     overrides: dict = {}
     for text in getattr(args, "set", None) or []:
         name, value = parse_override(text)
@@ -180,6 +182,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from physrover.experiment import bench
 
     pin_threads(args.threads)
+    if args.against and args.what != "train":
+        raise UsageError(f"--against times 'bench train', not 'bench {args.what}'")
     if args.what == "train" and args.methods:  # --set is checked against the first method
         args.method = args.methods.split(",")[0]  # (a trajectory critic's fields, say)
     config = _run_config(args)
@@ -203,7 +207,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
             f"{d.steps} steps, motion={d.motion}, median of {args.repeats} generations"
         )
         methods = args.methods.split(",") if args.methods else list(FITNESS_METHODS)
-        for line in bench.bench_train(config, methods, generations=args.repeats):
+        if args.against:
+            against = _run_config(args, args.against)
+            print(f"against {args.against}: its generations interleaved with these, in one "
+                  "process (the same --motion, --collisions and --set)")  # fmt: skip
+            lines = bench.bench_train_against(config, against, methods, args.repeats)
+        else:
+            lines = bench.bench_train(config, methods, generations=args.repeats)
+        for line in lines:
             print(line)
         return 0
     if args.what == "paper":

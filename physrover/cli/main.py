@@ -289,6 +289,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="world: the scaling table over these team sizes (about 1500 rovers "
                         "in all), e.g. 15,100,400,1000")  # fmt: skip
     p.add_argument("--repeats", type=int, default=20, help="timed runs/generations (default 20)")
+    p.add_argument("--against", metavar="FILE.toml|paper",
+                   help="train: interleave each generation with one of this config's "
+                        "(paper: the defaults) in one process, and print the medians' "
+                        "ratio")  # fmt: skip
     p.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
     _add_config_args(p)
     p.set_defaults(func=cmd_bench)

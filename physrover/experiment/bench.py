@@ -111,6 +111,39 @@ def bench_train(config, methods, generations: int = 10) -> list[str]:
     return lines
 
 
+def bench_train_against(config, baseline, methods, generations: int = 20) -> list[str]:
+    """Each method's generations of ``config`` interleaved with those of ``baseline`` in one
+    process, one of each in turn (after two warm-up generations of each): the medians (ms)
+    of the generation and of each phase for both, and their ratio. Where the host's speed
+    drifts from one process to the next (medians of the same command moved by a third on
+    a shared 2-core VM), the ratio of interleaved generations holds still: the way to
+    state a cost relative to the paper's team (``physrover bench train --against paper``).
+    """
+    from physrover.learn.ccea import CCEA
+
+    lines = []
+    for method in methods:
+        learners = [CCEA(c.with_overrides({"method": method})) for c in (config, baseline)]
+        for _ in range(2):
+            for learner in learners:
+                learner.run_generation()
+        spans = [{name: [] for name in ("generation", *learner.timings)} for learner in learners]
+        for _ in range(generations):
+            for learner, span in zip(learners, spans, strict=True):
+                before, start = dict(learner.timings), time.perf_counter()
+                learner.run_generation()
+                span["generation"].append(time.perf_counter() - start)
+                for name in learner.timings:
+                    span[name].append(learner.timings[name] - before[name])
+        parts = []
+        for name in spans[0]:
+            ours, theirs = (1000.0 * statistics.median(span[name]) for span in spans)
+            ratio = f" = {ours / theirs:.2f}x" if theirs >= 0.05 else ""
+            parts.append(f"{name} {ours:.1f} / {theirs:.1f}{ratio}")
+        lines.append(f"{method:20s} medians, ms (config / against): " + ", ".join(parts))
+    return lines
+
+
 def median_seconds(step, warm_up: int, repeats: int) -> float:
     """Median seconds of ``repeats`` calls of ``step()`` after ``warm_up`` untimed ones."""
     for _ in range(warm_up):
