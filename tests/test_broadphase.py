@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 
 from physrover import DomainConfig, RoverVectorEnv
-from physrover.domain.broadphase import GRID_MIN_POINTS, near_pairs_all, near_pairs_grid
+from physrover.core.compiled import jit
+from physrover.domain.broadphase import (
+    GRID_MIN_POINTS,
+    drain_ascending,
+    mark,
+    near_pairs_all,
+    near_pairs_grid,
+)
 from physrover.domain.motion.contacts import speculative_contacts
 from physrover.domain.motion.separation import pair_overlaps, separate_teams
 
@@ -269,3 +276,26 @@ def test_contacts_hold_in_a_jam_of_four_hundred():
     assert worst <= 0.015
     spread = np.linalg.norm(info["rover_positions"], axis=-1).max()
     assert spread < 0.5 * cfg.scenario.spawn_radius  # they did jam at the centre
+
+
+def test_a_set_of_bits_drains_its_indices_in_ascending_order():
+    """mark / drain_ascending against sorted(set(...)): indices across several words, the
+    64-bit boundaries, repeats, an empty set; the set is empty again after each drain."""
+
+    @jit
+    def through_bits(indices, marks, out):
+        for j in indices:
+            mark(marks, j)
+        return drain_ascending(marks, out)
+
+    rng = np.random.default_rng(5)
+    n = 300
+    marks = np.zeros((n + 63) // 64, np.uint64)
+    out = np.full(n, -1, np.int64)
+    cases = [np.array([63, 64, 0, 127, 128, 299, 64], np.int64), np.zeros(0, np.int64)]
+    cases += [rng.integers(0, n, rng.integers(1, 80)) for _ in range(200)]
+    for indices in cases:
+        expected = sorted(set(indices.tolist()))
+        count = through_bits(indices, marks, out)
+        assert out[:count].tolist() == expected
+        assert not marks.any()

@@ -38,7 +38,7 @@ import numpy as np
 
 from physrover.core.compiled import jit, jit_inline
 from physrover.domain.agents.classes import class_rows, class_sensor
-from physrover.domain.broadphase import grid
+from physrover.domain.broadphase import drain_ascending, grid, mark
 from physrover.domain.sensing.density import Density
 from physrover.domain.sensing.distances import AgentDistances, sense_distances
 from physrover.domain.sensing.lanes import Lanes, build_lanes, lanes_scratch, no_lanes, sense_lanes
@@ -52,10 +52,11 @@ MAX_STENCIL = 4
 """A class senses from the grid only if its radius spans at most this many cells each way."""
 
 MAX_NEAR = 48
-"""An agent with more agents than this in its cells (a crowd) scans every agent instead:
-sorting its candidates into index order (by insertion) would cost more. Measured
-(2026-12-03, EPYC Zen 3, ``benchmarks/configs/mixed200.toml`` packed into the paper's spawn
-disc): the grid 3.4x slower than all-pairs without the cap."""
+"""An agent with more agents than this in its cells (a crowd) scans every agent instead.
+Measured (2026-12-03, EPYC Zen 3, ``benchmarks/configs/mixed200.toml`` packed into the
+paper's spawn disc): the grid 3.4x slower than all-pairs without the cap, when the
+candidates were sorted into index order by insertion (now a set of bits,
+:func:`~physrover.domain.broadphase.drain_ascending`)."""
 
 
 class ClassSensing(NamedTuple):
@@ -100,6 +101,9 @@ class ClassSensing(NamedTuple):
     ``sqrt(radius_sq[c])``."""
     targets: np.ndarray
     """(C, R) bool: the agents a distances class measures."""
+    as_density: np.ndarray
+    """(C,) bool: the class's row reads as the density sensor (four sectors of heading, a
+    sum of inverse squares): the kernels compile it with those choices as constants."""
     cell: float
     """The grid's cell side (world units): the smallest radius of a local class; 0: none."""
     max_channels: int
@@ -114,7 +118,8 @@ class ClassSensing(NamedTuple):
         rows = class_rows(config)
         n, k = config.n_rovers, config.n_pois
         table = {name: [] for name in cls._fields if name not in ("d_min_sq", "cell", "lanes",
-                                                                   "max_channels")}  # fmt: skip
+                                                                   "max_channels",
+                                                                   "as_density")}  # fmt: skip
         for c, row in enumerate(rows):
             sensor = class_sensor(config, c)
             kind = type(sensor)
@@ -168,6 +173,8 @@ class ClassSensing(NamedTuple):
             "poi_radius_sq": float,
         }
         arrays = {name: np.array(v, dtype=dtypes.get(name, np.int64)) for name, v in table.items()}
+        arrays["as_density"] = ((arrays["n_sectors"] == 4) & (arrays["compose"] == 0)
+                                & (arrays["measure"] == 0) & ~arrays["world"])  # fmt: skip
         return cls(
             d_min_sq=float(config.d_min) ** 2,
             cell=float(cell),
@@ -178,11 +185,10 @@ class ClassSensing(NamedTuple):
 
 
 def _density_like(arrays: dict, c: int) -> bool:
-    """Whether class c's row reads as the density sensor (four sectors of heading, a sum
-    of inverse squares, every agent in view: no grid, no distances)."""
-    return bool(arrays["n_sectors"][c] == 4 and arrays["compose"][c] == 0
-                and arrays["measure"][c] == 0 and not arrays["world"][c]
-                and not arrays["local"][c] and not arrays["distances"][c])  # fmt: skip
+    """Whether class c's row reads as the density sensor (``as_density``) with every agent
+    in view: no grid, no distances."""
+    return bool(arrays["as_density"][c] and not arrays["local"][c]
+                and not arrays["distances"][c])  # fmt: skip
 
 
 def _lanes(arrays: dict, n_pois: int) -> Lanes:
@@ -218,10 +224,11 @@ def sensing_scratch(sensing, n_agents):
 
 
 @jit
-def _near(i, cells, nx, ny, starts, members, reach, out):
+def _near(i, cells, nx, ny, starts, members, reach, marks, out):
     """The agents in the (2 reach + 1)^2 cells around agent i's cell, ascending, in
-    ``out``; returns how many (none for an agent in no cell), or -1 past
-    :data:`MAX_NEAR` (a crowd, where sorting them costs more than scanning every agent)."""
+    ``out`` (through the empty set of bits ``marks``, left empty); returns how many (none
+    for an agent in no cell), or -1 past :data:`MAX_NEAR` (a crowd: scanning every agent
+    costs less)."""
     cx, cy = cells[i, 0], cells[i, 1]
     n = 0
     if cx < 0:
@@ -230,31 +237,31 @@ def _near(i, cells, nx, ny, starts, members, reach, out):
         lo = x * ny + max(cy - reach, 0)
         hi = x * ny + min(cy + reach, ny - 1) + 1
         if n + starts[hi] - starts[lo] > MAX_NEAR:
+            marks[:] = 0
             return -1
         for slot in range(starts[lo], starts[hi]):
-            j, at = members[slot], n
-            while at > 0 and out[at - 1] > j:  # insertion: the few near, in index order
-                out[at] = out[at - 1]
-                at -= 1
-            out[at] = j
-            n += 1
-    return n
+            mark(marks, members[slot])
+        n += starts[hi] - starts[lo]
+    return drain_ascending(marks, out)
 
 
 @jit
 def _sense_near(e, state, sensing, acc, count, near, obs):
     """Every agent of team e in a class that finds its neighbours from the grid: those in
-    the cells its radius reaches, or every agent for one in a crowd (:func:`_near`)."""
+    the cells its radius reaches, or every agent for one in a crowd (:func:`_near`). (A
+    copy compiled with the density sensor's choices as constants, as :func:`sense_classes`
+    has, was no faster here: 2026-12-06, ``benchmarks/configs/mixed200.toml``.)"""
     n_agents, width = state.cos_h.shape[1], obs.shape[2]
     cells, nx, ny, starts, members, _ = grid(state.rover_positions[e], sensing.cell)
     everyone = np.arange(n_agents)
+    marks = np.zeros((n_agents + 63) // 64, np.uint64)
     for c in range(sensing.first.shape[0]):
         if not (sensing.compiled[c] and sensing.local[c]):
             continue
         n_channels, radius_sq = sensing.n_channels[c], sensing.radius_sq[c]
         reach = np.int64(math.ceil(math.sqrt(radius_sq) / sensing.cell))
         for i in range(sensing.first[c], sensing.stop[c]):
-            n_near = _near(i, cells, nx, ny, starts, members, reach, near)
+            n_near = _near(i, cells, nx, ny, starts, members, reach, marks, near)
             lidar_agent(e, i, state, sensing.d_min_sq, sensing.n_sectors[c], radius_sq,
                         sensing.compose[c], sensing.measure[c], sensing.empty[c],
                         sensing.world[c], sensing.agent_base[c], sensing.poi_base[c],
@@ -323,8 +330,7 @@ def sense_classes(e, state, sensing, obs, scratch):
                 for q in range(sense_distances(e, i, state.rover_positions, sensing.targets[c],
                                                radius, obs), obs.shape[2]):  # fmt: skip
                     obs[e, i, q] = 0.0
-        elif (sensing.n_sectors[c] == 4 and sensing.compose[c] == 0 and sensing.measure[c] == 0
-              and not sensing.world[c]):  # fmt: skip
+        elif sensing.as_density[c]:
             _sense_as_density(e, c, state, sensing, acc, count, obs)
         else:
             _sense_all_pairs(e, c, state, sensing, acc, count, obs)
