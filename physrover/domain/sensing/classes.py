@@ -103,7 +103,8 @@ class ClassSensing(NamedTuple):
     """(C, R) bool: the agents a distances class measures."""
     as_density: np.ndarray
     """(C,) bool: the class's row reads as the density sensor (four sectors of heading, a
-    sum of inverse squares): the kernels compile it with those choices as constants."""
+    sum of inverse squares): :func:`sense_classes` senses it with a copy of the kernel
+    compiled with those choices as constants, and the lanes take only such rows."""
     cell: float
     """The grid's cell side (world units): the smallest radius of a local class; 0: none."""
     max_channels: int
