@@ -67,9 +67,10 @@ else:
 
 
 @jit_inline
-def mark(marks, j):
-    """Add index ``j`` >= 0 to the set ``marks``, (ceil(n / 64),) uint64 words of bits."""
-    marks[j >> 6] |= np.uint64(1) << np.uint64(j & 63)
+def mark(marks, j, keep=True):
+    """Add index ``j`` >= 0 to the set ``marks``, (ceil(n / 64),) uint64 words of bits, if
+    ``keep`` (without a branch: a test a branch predictor cannot learn costs less so)."""
+    marks[j >> 6] |= np.uint64(keep) << np.uint64(j & 63)
 
 
 @jit_inline

@@ -225,15 +225,20 @@ def sensing_scratch(sensing, n_agents):
 
 
 @jit
-def _near(i, cells, nx, ny, starts, members, reach, marks, out):
-    """The agents in the (2 reach + 1)^2 cells around agent i's cell, ascending, in
-    ``out`` (through the empty set of bits ``marks``, left empty); returns how many (none
-    for an agent in no cell), or -1 past :data:`MAX_NEAR` (a crowd: scanning every agent
-    costs less)."""
+def _near(i, points, cells, nx, ny, starts, members, ordered, radius_sq, reach, marks, out):
+    """The agents within ``radius_sq`` (squared, world units) of agent i, found in the
+    (2 reach + 1)^2 cells around its cell, ascending, in ``out`` (through the empty set of
+    bits ``marks``, left empty); returns how many (none for an agent in no cell), or -1
+    if its cells hold more than :data:`MAX_NEAR` (a crowd: scanning every agent costs
+    less). The distance test is :func:`~physrover.domain.sensing.lidar.lidar_agent`'s on
+    the same numbers (``points``, the team's (R, 2) positions, and ``ordered``, the grid's
+    copy of them), without a branch: whether a candidate is in range is a coin toss that
+    the branch predictor cannot learn, and the lidar then sees only those in range."""
     cx, cy = cells[i, 0], cells[i, 1]
     n = 0
     if cx < 0:
         return n
+    xi, yi = points[i, 0], points[i, 1]
     for x in range(max(cx - reach, 0), min(cx + reach, nx - 1) + 1):
         lo = x * ny + max(cy - reach, 0)
         hi = x * ny + min(cy + reach, ny - 1) + 1
@@ -241,7 +246,8 @@ def _near(i, cells, nx, ny, starts, members, reach, marks, out):
             marks[:] = 0
             return -1
         for slot in range(starts[lo], starts[hi]):
-            mark(marks, members[slot])
+            dx, dy = ordered[slot, 0] - xi, ordered[slot, 1] - yi
+            mark(marks, members[slot], dx * dx + dy * dy <= radius_sq)
         n += starts[hi] - starts[lo]
     return drain_ascending(marks, out)
 
@@ -253,7 +259,8 @@ def _sense_near(e, state, sensing, acc, count, near, obs):
     copy compiled with the density sensor's choices as constants, as :func:`sense_classes`
     has, was no faster here: 2026-12-06, ``benchmarks/configs/mixed200.toml``.)"""
     n_agents, width = state.cos_h.shape[1], obs.shape[2]
-    cells, nx, ny, starts, members, _ = grid(state.rover_positions[e], sensing.cell)
+    points = state.rover_positions[e]
+    cells, nx, ny, starts, members, ordered = grid(points, sensing.cell)
     everyone = np.arange(n_agents)
     marks = np.zeros((n_agents + 63) // 64, np.uint64)
     for c in range(sensing.first.shape[0]):
@@ -262,7 +269,8 @@ def _sense_near(e, state, sensing, acc, count, near, obs):
         n_channels, radius_sq = sensing.n_channels[c], sensing.radius_sq[c]
         reach = np.int64(math.ceil(math.sqrt(radius_sq) / sensing.cell))
         for i in range(sensing.first[c], sensing.stop[c]):
-            n_near = _near(i, cells, nx, ny, starts, members, reach, marks, near)
+            n_near = _near(i, points, cells, nx, ny, starts, members, ordered, radius_sq,
+                           reach, marks, near)  # fmt: skip
             lidar_agent(e, i, state, sensing.d_min_sq, sensing.n_sectors[c], radius_sq,
                         sensing.compose[c], sensing.measure[c], sensing.empty[c],
                         sensing.world[c], sensing.agent_base[c], sensing.poi_base[c],
