@@ -72,9 +72,9 @@ def score_team(e, state, d_cap_sq, n_req, t, rules=None, counted=None, failures=
             elif rules.valued[k]:
                 score_by_distance(e, k, near, state, rules, n_req, t, failures)
             else:
-                capture_by_rules(e, k, near, t, rules.typed, rules.require, rules.agent_class,
-                                 rules.after, rules.step_without, n_req, captured,
-                                 state.capture_step, captured_without)  # fmt: skip
+                capture_by_rules(e, k, near, count, t, rules.typed, rules.require,
+                                 rules.agent_class, rules.after, rules.step_without, n_req,
+                                 captured, state.capture_step, captured_without)  # fmt: skip
         else:
             if count[k] >= n_req[k]:  # Eq. 12
                 if not captured[e, k]:
@@ -101,8 +101,8 @@ def predecessors_before(after, k, first_steps, t):
 
 
 @jit_inline
-def capture_by_rules(e, k, near, t, typed, require, agent_class, after, step_without, n_req,
-                     captured, capture_step, captured_without):  # fmt: skip
+def capture_by_rules(e, k, near, count, t, typed, require, agent_class, after, step_without,
+                     n_req, captured, capture_step, captured_without):  # fmt: skip
     """Eq. 12 for POI k of team e at step t under POI rules (:mod:`physrover.domain.scoring.rules`;
     its ``final_only`` checked and not valued by distance), for the team and for each
     counterfactual without rover i; the counts are this step's. The rules' arrays come one
@@ -116,8 +116,15 @@ def capture_by_rules(e, k, near, t, typed, require, agent_class, after, step_wit
     Leaving an agent out never raises a count, so no counterfactual meets a coupling that the
     team misses, and leaving out an agent not in range changes nothing: the coupling is
     counted again only without each agent in range (O(R) a POI, not O(R^2)). ``near`` is
-    ``state.in_range[t, e]``, the team's view, passed in rather than made again per POI."""
-    if not coupling_met(k, near, typed, require, agent_class, n_req, -1):
+    ``state.in_range[t, e]``, the team's view, passed in rather than made again per POI;
+    ``count`` (K,) its sums over the agents (``state.poi_counts[e]``), from which an untyped
+    POI's coupling is read in O(1): ``coupling_met`` without agent i is ``count[k] -
+    near[i, k] >= n_req[k]`` there, the same integers (2026-12-06,
+    ``benchmarks/configs/chain.toml``: ``score_team`` took twice the paper's time, ~0.9 ms a
+    D generation more, its hottest loop that O(R) count per POI and step)."""
+    is_typed = typed[k]
+    if not (coupling_met(k, near, typed, require, agent_class, n_req, -1) if is_typed
+            else count[k] >= n_req[k]):  # fmt: skip
         return
     if not captured[e, k] and predecessors_before(after, k, capture_step[e], t):
         capture_step[e, k] = t
@@ -125,7 +132,8 @@ def capture_by_rules(e, k, near, t, typed, require, agent_class, after, step_wit
     for i in range(near.shape[0]):
         if captured_without[e, i, k]:
             continue
-        if near[i, k] and not coupling_met(k, near, typed, require, agent_class, n_req, i):
+        if near[i, k] and not (coupling_met(k, near, typed, require, agent_class, n_req, i)
+                               if is_typed else count[k] - 1 >= n_req[k]):  # fmt: skip
             continue
         if predecessors_before(after, k, step_without[e, i], t):
             captured_without[e, i, k] = True
