@@ -1,10 +1,10 @@
 """Per agent-step cost of world episodes of two team configs, interleaved in one process.
 
 The one-engine issue's many-agent target: a 200-agent mixed team's cost per agent-step
-against the 15-agent mixed team's. Each round plays one episode (reset + steps, uniform
-random actions, through the vector env as ``physrover bench world`` does) of each config
-in turn, so the host's drift hits both; prints the medians in ns per agent-step and their
-ratio.
+against the 15-agent mixed team's. Each round plays one episode of each config in turn
+(reset + steps of uniform random actions: ``physrover.experiment.bench.world_episodes``,
+what ``physrover bench world`` times), so the host's drift hits both; prints the medians
+in ns per agent-step and their ratio.
 
     python benchmarks/per_agent_step.py                      # mixed200 (4 teams) / mixed15 (50)
     python benchmarks/per_agent_step.py A.toml:TEAMS B.toml:TEAMS --rounds 30
@@ -18,14 +18,11 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import time
 from pathlib import Path
-
-import numpy as np
 
 from physrover.config import RunConfig
 from physrover.core.threads import pin_threads
-from physrover.envs.gymnasium_env import RoverVectorEnv
+from physrover.experiment.bench import world_episodes
 
 CONFIGS = Path(__file__).parent / "configs"
 
@@ -39,24 +36,18 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=30, help="timed episodes of each")
     args = parser.parse_args()
     pin_threads(1)
-    envs = []
+    episodes = []
     for spec in (args.config, args.against):
         path, teams = spec.rsplit(":", 1)
         domain = RunConfig.load(path).domain
-        env = RoverVectorEnv(int(teams), config=domain)
-        env.reset(seed=0)
-        shape = (domain.steps, int(teams), domain.n_rovers, 2)
-        actions = np.random.default_rng(0).uniform(-1, 1, shape).astype(np.float32)
-        envs.append((Path(path).stem, env, actions, int(teams) * domain.n_rovers * domain.steps))
-    ns = {name: [] for name, *_ in envs}
+        _, play = world_episodes(domain, int(teams))
+        episodes.append((Path(path).stem, play, int(teams) * domain.n_rovers * domain.steps))
+    ns = {name: [] for name, *_ in episodes}
     for round_ in range(args.rounds + 2):  # two rounds of warm-up
-        for name, env, actions, agent_steps in envs:
-            start = time.perf_counter()
-            env.reset()
-            for a in actions:
-                env.step(a)
+        for name, play, agent_steps in episodes:
+            seconds = play()
             if round_ >= 2:
-                ns[name].append((time.perf_counter() - start) / agent_steps * 1e9)
+                ns[name].append(seconds / agent_steps * 1e9)
     (a, ours), (b, theirs) = ((name, statistics.median(v)) for name, v in ns.items())
     print(f"{a}: {ours:.0f} ns per agent-step, {b}: {theirs:.0f}, ratio {ours / theirs:.2f}")
 

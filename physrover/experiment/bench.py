@@ -32,20 +32,31 @@ class Timing:
         )
 
 
-def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> Timing:
-    """Time reset + ``config.steps`` steps of the vector env with uniform random actions."""
+def world_episodes(config: DomainConfig, n_teams: int = 50):
+    """``(env, play)``: a vector env of ``n_teams`` teams reset with seed 0, and ``play()``,
+    which times one episode of it (reset + ``config.steps`` steps of uniform random actions,
+    drawn once beforehand from seed 0) and returns its seconds."""
     env = RoverVectorEnv(n_teams, config=config)
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, (config.steps, n_teams, config.n_rovers, 2)).astype(np.float32)
     env.reset(seed=0)
-    runs = []
-    for _ in range(repeats + 1):  # the first run warms caches and is dropped
+
+    def play() -> float:
         start = time.perf_counter()
         env.reset()
         for a in actions:
             env.step(a)
-        runs.append(1000.0 * (time.perf_counter() - start))
-    runs = runs[1:]
+        return time.perf_counter() - start
+
+    return env, play
+
+
+def bench_world(config: DomainConfig, n_teams: int = 50, repeats: int = 20) -> Timing:
+    """Time reset + ``config.steps`` steps of the vector env with uniform random actions
+    (:func:`world_episodes`)."""
+    env, play = world_episodes(config, n_teams)
+    play()  # warms caches; not counted
+    runs = [1000.0 * play() for _ in range(repeats)]
     name = (
         f"world reset + {config.steps} steps, {n_teams} teams x {config.n_rovers} rovers, "
         f"motion={config.motion}"
@@ -83,26 +94,39 @@ def bench_scaling(config: DomainConfig, rovers: list[int], total: int = 1500,
     return rows
 
 
+def _warm_learner(config, method: str):
+    """A CCEA of ``config`` under ``method``, two generations played (caches, the first
+    critic updates)."""
+    from physrover.learn.ccea import CCEA
+
+    learner = CCEA(config.with_overrides({"method": method}))
+    for _ in range(2):
+        learner.run_generation()
+    return learner
+
+
+def _timed_generation(learner) -> dict[str, float]:
+    """Seconds of one generation of ``learner``: ``"generation"`` whole, and each phase of
+    its ``timings``."""
+    before, start = dict(learner.timings), time.perf_counter()
+    learner.run_generation()
+    spans = {"generation": time.perf_counter() - start}
+    spans.update((name, learner.timings[name] - before[name]) for name in learner.timings)
+    return spans
+
+
 def bench_train(config, methods, generations: int = 10) -> list[str]:
     """Median ms per generation for each method, with the fastest and slowest (how steady
     the machine is: compare medians only when they differ by more than the spread) and the
     mean time per phase (means: they add up to the mean generation, not to the median)."""
-    from physrover.learn.ccea import CCEA
-
     lines = []
     for method in methods:
-        ccea = CCEA(config.with_overrides({"method": method}))
-        for _ in range(2):  # warm-up: caches, first critic updates
-            ccea.run_generation()
-        before = dict(ccea.timings)
-        runs = []
-        for _ in range(generations):
-            start = time.perf_counter()
-            ccea.run_generation()
-            runs.append(1000.0 * (time.perf_counter() - start))
+        learner = _warm_learner(config, method)
+        spans = [_timed_generation(learner) for _ in range(generations)]
+        runs = [1000.0 * span["generation"] for span in spans]
         parts = ", ".join(
-            f"{name} {1000.0 * (ccea.timings[name] - before[name]) / generations:.1f}"
-            for name in ccea.timings
+            f"{name} {1000.0 * sum(span[name] for span in spans) / generations:.1f}"
+            for name in learner.timings
         )
         lines.append(
             f"{method:20s} median {statistics.median(runs):6.1f} ms/generation (min "
@@ -119,25 +143,15 @@ def bench_train_against(config, baseline, methods, generations: int = 20) -> lis
     a shared 2-core VM), the ratio of interleaved generations holds still: the way to
     state a cost relative to the paper's team (``physrover bench train --against paper``).
     """
-    from physrover.learn.ccea import CCEA
-
     lines = []
     for method in methods:
-        learners = [CCEA(c.with_overrides({"method": method})) for c in (config, baseline)]
-        for _ in range(2):
-            for learner in learners:
-                learner.run_generation()
-        spans = [{name: [] for name in ("generation", *learner.timings)} for learner in learners]
-        for _ in range(generations):
-            for learner, span in zip(learners, spans, strict=True):
-                before, start = dict(learner.timings), time.perf_counter()
-                learner.run_generation()
-                span["generation"].append(time.perf_counter() - start)
-                for name in learner.timings:
-                    span[name].append(learner.timings[name] - before[name])
+        learners = [_warm_learner(c, method) for c in (config, baseline)]
+        rounds = [[_timed_generation(learner) for learner in learners]
+                  for _ in range(generations)]  # fmt: skip
         parts = []
-        for name in spans[0]:
-            ours, theirs = (1000.0 * statistics.median(span[name]) for span in spans)
+        for name in rounds[0][0]:
+            ours, theirs = (1000.0 * statistics.median(pair[side][name] for pair in rounds)
+                            for side in (0, 1))  # fmt: skip
             ratio = f" = {ours / theirs:.2f}x" if theirs >= 0.05 else ""
             parts.append(f"{name} {ours:.1f} / {theirs:.1f}{ratio}")
         lines.append(f"{method:20s} medians, ms (config / against): " + ", ".join(parts))
