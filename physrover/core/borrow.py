@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from numba import types
 from numba.core import cgutils
-from numba.extending import intrinsic, overload
+from numba.extending import lower_builtin, type_callable
 
 
 def _borrow(context, builder, typ, value):
@@ -58,17 +58,22 @@ def borrowed(value):
     return value
 
 
-@intrinsic
-def _borrowed(typingctx, value):
-    def codegen(context, builder, signature, args):
-        return _borrow(context, builder, signature.args[0], args[0])
+@type_callable(borrowed)
+def _type_borrowed(context):
+    """In compiled code ``borrowed(value)`` has ``value``'s type. Typed and lowered directly
+    (not an ``@overload`` of a function calling an intrinsic): an overload compiles its
+    implementation once per argument type before inlining it, which for a step's plan cost
+    0.7 s of compile a kernel and 37 s over the test suite (2026-12-07)."""
 
-    return value(value), codegen
+    def typer(value):
+        return value
+
+    return typer
 
 
-@overload(borrowed, inline="always")
-def _borrowed_compiled(value):
-    return lambda value: _borrowed(value)
+@lower_builtin(borrowed, types.Any)
+def _lower_borrowed(context, builder, signature, args):
+    return _borrow(context, builder, signature.args[0], args[0])
 
 
 __all__ = ["borrowed"]
