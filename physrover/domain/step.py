@@ -74,10 +74,12 @@ def _classes_scratch(classes, n_agents):
 
 
 @jit
-def step_scratch(plan, n_agents):
-    """A :class:`StepScratch` for teams of ``n_agents`` under ``plan``."""
-    return StepScratch(np.ones(n_agents, np.bool_), _density_scratch(plan.density, n_agents),
-                       _classes_scratch(plan.classes, n_agents))  # fmt: skip
+def step_scratch(density, classes, n_agents):
+    """A :class:`StepScratch` for teams of ``n_agents`` under a plan's ``density`` sensor and
+    ``classes``' sensing (either may be None). It takes those two, not the plan, so that it
+    is compiled once per sensing, not once per plan."""
+    return StepScratch(np.ones(n_agents, np.bool_), _density_scratch(density, n_agents),
+                       _classes_scratch(classes, n_agents))  # fmt: skip
 
 
 def _move(e, t, commands, state, actions, headings, motion, free, failures):
@@ -162,7 +164,7 @@ def step_teams(commands, t, plan, actions, obs, positions, headings, *state):
         return False
     st, plan = borrowed((WorldState(*state), plan))  # no atomic reference counts (core.borrow)
     actions, obs, positions, headings = borrowed((actions, obs, positions, headings))
-    scratch = step_scratch(plan, st.cos_h.shape[1])
+    scratch = step_scratch(plan.density, plan.classes, st.cos_h.shape[1])
     for e in range(st.cos_h.shape[0]):
         step_team(e, t, commands, plan, st, actions, obs, positions, headings, True, scratch,
                   t > 0)  # fmt: skip
@@ -182,7 +184,7 @@ def step_teams_at(commands, t, plan, actions, obs, positions, headings, *state):
             return False
     st, plan = borrowed((WorldState(*state), plan))  # no atomic reference counts (core.borrow)
     actions, obs, positions, headings = borrowed((actions, obs, positions, headings))
-    scratch = step_scratch(plan, st.cos_h.shape[1])
+    scratch = step_scratch(plan.density, plan.classes, st.cos_h.shape[1])
     for e in range(st.cos_h.shape[0]):
         te = t[e]
         if te >= 0:

@@ -82,7 +82,7 @@ def policy_episode(genomes, hidden, tanh_hidden, in_dims, headings, plan, observ
     h = np.empty(hidden, np.float32)
     commands = np.empty((n_teams, n_rovers, 2), np.float32)
     last_obs = np.empty((n_teams, n_rovers, observations.shape[3]), np.float32)
-    scratch = step_scratch(plan, n_rovers)
+    scratch = step_scratch(plan.density, plan.classes, n_rovers)
     for e in range(n_teams):
         for t in range(steps):
             forward_team(genomes[e], hidden, observations[t, e], commands[e], in_dims, h,
