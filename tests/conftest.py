@@ -16,6 +16,28 @@ def pytest_xdist_auto_num_workers(config):
     return min(4, os.cpu_count() or 1)
 
 
+# Test modules whose tests are long and share few kernel versions: spread test by test over
+# the workers.
+SPREAD = ("test_properties", "test_durability", "test_docs")
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups (its hook is not trylast)
+def pytest_collection_modifyitems(config, items):
+    """Under ``--dist loadgroup`` (the README's command) a module's tests run on one worker:
+    they compile the same versions of the kernels (a world's step for one config is a
+    version, ~10 s to compile cold), and two workers that need a version at once both
+    compile it (numba writes its cache when a compile ends). Measured on a cold cache
+    (2026-12-07, 2 workers): 87 s of the suite's 700 s of compiles were such doubles, all
+    within one module. The tests of ``SPREAD`` go one by one, after the modules (xdist
+    sends the largest groups first), those marked ``long`` first, so that no long test is
+    left running alone at the end."""
+    items.sort(key=lambda item: item.get_closest_marker("long") is None)
+    for item in items:
+        name = item.module.__name__.rsplit(".", 1)[-1]
+        if name not in SPREAD and item.get_closest_marker("xdist_group") is None:
+            item.add_marker(pytest.mark.xdist_group(name))
+
+
 def comparable_rows(rows):
     """metrics.csv rows without the wall time, NaN made comparable (NaN != NaN)."""
     return [

@@ -104,6 +104,7 @@ def test_bash_blocks_are_commands_the_cli_accepts(page):
                         pytest.fail(f"{_id(page)}: `{part.strip()}` is not accepted ({exc})")
 
 
+@pytest.mark.long
 def test_the_getting_started_page_runs_as_printed(tmp_path):
     """Its commands, in order, in a fresh directory (the sweep it runs is shipped in the
     package); the install block is the machine's, not the test's."""

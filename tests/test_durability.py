@@ -50,6 +50,7 @@ LATER = FIRST[:6] + ["replace"] + FIRST[6:]
     [("ccea", 2, FIRST), ("ccea", 4, LATER), ("mappo", 4, LATER), ("maddpg", 4, LATER)],
     ids=["first", "later", "mappo", "maddpg"],
 )
+@pytest.mark.long
 def test_a_fault_at_any_step_of_a_checkpoint_resumes_bit_identically(
     learner, generation, steps, tmp_path
 ):
@@ -78,6 +79,7 @@ def test_a_fault_at_any_step_of_a_checkpoint_resumes_bit_identically(
         assert_same_run(tmp_path / "reference", out, exact_snapshots=True)
 
 
+@pytest.mark.long
 def test_a_run_killed_30_times_at_random_instants_ends_bit_identical(tmp_path):
     generations = 200
     report = _crashes("kill-loop", tmp_path, 30, 11, generations)

@@ -193,6 +193,7 @@ def _train_toml(doc: dict, names) -> str:
         return _refused_or_trained(code, err, out, [*names, str(path)])
 
 
+@pytest.mark.long
 @_settings(500)
 @given(edits())
 def test_any_config_toml_is_refused_in_one_line_or_trains(changes):
@@ -228,6 +229,7 @@ def _literal(value) -> str:
     return tomlkit.item(value).as_string()
 
 
+@pytest.mark.long
 @_settings(500)
 @given(edits(max_edits=2), st.booleans())
 def test_any_set_values_are_refused_in_one_line_or_train(changes, raw_text):
@@ -306,6 +308,7 @@ def poi_tables(draw, names: list[str]) -> list[dict]:
     return tables
 
 
+@pytest.mark.long
 @_settings(250)
 @given(st.data())
 def test_any_agent_and_poi_tables_are_refused_in_one_line_or_train(data):
@@ -323,6 +326,7 @@ def test_any_agent_and_poi_tables_are_refused_in_one_line_or_train(data):
     _train_toml(doc, ["agents", "pois", "n_req", "n_rovers", "poi_values"])
 
 
+@pytest.mark.long
 @_settings(500)
 @given(st.data())
 def test_any_sweep_file_is_refused_in_one_line_or_runs(data):
