@@ -339,7 +339,7 @@ def test_the_head_node_lost_mid_sweep_ends_in_one_line_and_a_new_head_resumes(cl
     for node in (cluster.worker, cluster.head):  # both nodes up (a test before may kill one)
         cluster.kill_ray(node)
     cluster.start_ray()
-    sweep = _sweep_file(tmp_path, "headless", 3000)
+    sweep = _sweep_file(tmp_path, "headless", 1000)
     runs = tmp_path / "cluster" / "headless"
     process = cluster.sweep(sweep, tmp_path / "cluster")
     deadline = time.monotonic() + 120
