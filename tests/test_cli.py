@@ -335,11 +335,13 @@ def test_bench_train_against_interleaves_two_configs_and_states_their_ratios(cap
     time."""
     import re
 
-    longer = tmp_path / "longer.toml"  # the same kernels' types: nothing new to compile
+    # 7 steps against the paper's 50, the --set fields in both: the same kernels' types,
+    # nothing new to compile (a --set steps would make the two configs one)
+    longer = tmp_path / "longer.toml"
     longer.write_text("[domain]\nsteps = 7\n")
     args = ["bench", "train", "--methods", "D", "--repeats", "3", "--config", str(longer),
             "--against", "paper", "--set", "n_rovers=3", "--set", "n_req=1",
-            "--set", "population=6", "--set", "steps=5"]  # fmt: skip
+            "--set", "population=6"]  # fmt: skip
     assert main(args) == 0
     out = capsys.readouterr().out
     (line,) = [row for row in out.splitlines() if row.startswith("D ")]
