@@ -101,6 +101,7 @@ class CCEA:
             world = self.env.world  # the rules its rescoring replays captures under
             self._rules = world.plan.step.rules or PoiRules.build(d, world.n_teams, always=True)
         self.fitness = np.zeros((self.n_rovers, self.k))
+        self._pairs = None  # the trajectories' (s, a) pairs (_trajectories)
         # the fitness each policy carries into softmax team formation (NaN: not scored yet)
         self.carried = np.zeros((self.n_rovers, self.k))
         self.champion = np.zeros(self.n_rovers, dtype=np.int64)
@@ -165,10 +166,13 @@ class CCEA:
         world's (T, E, R, n_obs) observations and (T, E, R, 2) actions (D = n_obs + 2);
         ``where[r, p]`` is the team of policy p of rover r."""
         obs, act = self.env.world.trajectories()
-        pair_dim = obs.shape[-1] + act.shape[-1]
-        out = np.empty((self.n_rovers, self.k, obs.shape[0], pair_dim), dtype=np.float32)
-        gather_trajectories(obs, act, where, out, dims(obs.shape[-1]))
-        return out
+        shape = (self.n_rovers, self.k, obs.shape[0], obs.shape[-1] + act.shape[-1])
+        # One array kept across generations (overwritten by the next one): a fresh ~2 MB
+        # array page-faulted every generation on the mixed team (glibc trimmed its heap).
+        if self._pairs is None or self._pairs.shape != shape:
+            self._pairs = np.empty(shape, dtype=np.float32)
+        gather_trajectories(obs, act, where, self._pairs, dims(obs.shape[-1]))
+        return self._pairs
 
     def _step_feedback(self, where: np.ndarray) -> np.ndarray:
         """(R, k, T) the credit signal of each policy's step t + 1 in round 0, taken alone

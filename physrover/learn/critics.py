@@ -83,10 +83,9 @@ class IntermediateCritics:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """C for (R, N, D) pairs -> (R, N) float32."""
-        # The kernel keeps pairs in its innermost loop: pairs (R, D, N), weights (R, H, D).
-        xT = np.ascontiguousarray(np.swapaxes(x, 1, 2), dtype=np.float32)
+        x = np.ascontiguousarray(x, dtype=np.float32)  # no copy if it already is
         out = np.empty(x.shape[:2], dtype=np.float32)
-        critic_values(self.W1T(), self.b1, self.b2, self.W2, self.slope, xT, out,
+        critic_values(self.W1T(), self.b1, self.b2, self.W2, self.slope, x, out,
                       dims(x.shape[-1]))  # fmt: skip
         return out
 

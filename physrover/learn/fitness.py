@@ -94,7 +94,8 @@ class FitnessMethod:
             feedback: (rounds, R, k) the credit of each policy's episode in each round.
             G: (rounds, R, k) the team score of each policy's episode.
             trajectories: (R, k, T, D) (s, a) pairs of each policy in round 0, D = the
-                sensor's size + 2; None unless ``needs_trajectories``.
+                sensor's size + 2; None unless ``needs_trajectories``. The CCEA writes
+                every generation's pairs into the same array: copy what is kept.
 
         With ``needs_step_feedback``, also ``step_feedback`` (R, k, T): each policy's credit
         at step t + 1 of round 0 alone (``Credit.per_step``), the step pair t leads to.

@@ -128,17 +128,26 @@ def _critic_forward(W1T, b1, out_w, slope, xT, z, value, dims):
 
 
 @jit
-def critic_values(W1T, b1, b2, W2, slope, xT, out, dims):
+def critic_values(W1T, b1, b2, W2, slope, x, out, dims):
     """``C(x) = sum_h lrelu(x W1 + b1)_h + b2`` (Eq. 2) of R critics (W1T (R, H, D), b1
-    (R, H), b2 (R,)) on pairs xT (R, D, N), into (R, N) ``out``, or with trained output
+    (R, H), b2 (R,)) on pairs x (R, N, D), into (R, N) ``out``, or with trained output
     weights W2 (R, H) ``sum_h W2_h lrelu(...)_h + b2`` (None: fixed to 1); ``dims``: D
-    zeros (``compiled.dims``)."""
-    scratch = np.empty((1, xT.shape[2]), np.float32)
-    for r in range(xT.shape[0]):
+    zeros (``compiled.dims``). Each critic's pairs are transposed to (D, N), the layout of
+    :func:`_critic_forward`, in one scratch block reused by every critic (a transposed
+    copy of the whole (R, N, D) array, ~2 MB for the mixed team, was a fresh allocation
+    that page-faulted every generation)."""
+    n_in = len(dims)
+    n_pairs = x.shape[1]
+    xT = np.empty((n_in, n_pairs), np.float32)
+    scratch = np.empty((1, n_pairs), np.float32)
+    for r in range(x.shape[0]):
+        for n in range(n_pairs):
+            for i in range(n_in):
+                xT[i, n] = x[r, n, i]
         value = out[r]
         w2 = None if W2 is None else W2[r]
-        _critic_forward(W1T[r], b1[r], w2, slope, xT[r], scratch, value, dims)
-        for n in range(value.shape[0]):
+        _critic_forward(W1T[r], b1[r], w2, slope, xT, scratch, value, dims)
+        for n in range(n_pairs):
             value[n] += b2[r]
 
 
