@@ -10,6 +10,7 @@ makes one); elsewhere they skip.
 import dataclasses
 import re
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -121,3 +122,15 @@ def test_benchmarl_mappo_trains_physrover_past_random(tmp_path, capsys):
     assert floor == pytest.approx(random_return(DomainConfig(n_rovers=4, n_req=1)))
     assert floor < 0.5 and trained > 1.5, line
     assert list((tmp_path / "bm").rglob("*.json")), "BenchMARL's marl-eval json is missing"
+
+
+@pytest.mark.parametrize("name", ["n_req=1_seed=0", "it's [a] run, 1"])
+def test_a_save_folder_may_hold_hydras_own_characters(tmp_path, name):
+    """A sweep's run folder is named ``n_req=1_seed=0``: Hydra's override grammar reads "="
+    (and quotes, brackets, commas) as its own unless the value is quoted."""
+    folder = tmp_path / name / "bm"
+    experiment = compose_experiment(["algorithm=mappo", "task=physrover/rover_domain",
+                                     "experiment.loggers=[csv]"],
+                                    save_folder=folder)  # fmt: skip
+    assert Path(experiment.config.save_folder) == folder.resolve()
+    assert folder.is_dir()

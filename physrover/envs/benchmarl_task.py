@@ -202,8 +202,9 @@ def compose_experiment(overrides: Sequence[str], save_folder: str | Path | None 
     if task_name not in task_config_registry:
         known = ", ".join(sorted(k for k in task_config_registry if k.startswith(ENV_NAME)))
         raise ValueError(f"task={task_name}: expected a BenchMARL task such as {known}")
-    if save_folder is not None:
-        overrides.append(f"experiment.save_folder={Path(save_folder).resolve()}")
+    if save_folder is not None:  # quoted: a run folder's name may hold "=" (n_req=1_seed=0)
+        quoted = str(Path(save_folder).resolve()).replace("\\", "\\\\").replace("'", "\\'")
+        overrides.append(f"experiment.save_folder='{quoted}'")
     search = f"hydra.searchpath=[file://{CONF_DIR}]"
     with initialize_config_module(config_module="benchmarl.conf", version_base=None):
         cfg = compose(config_name="config", overrides=[*overrides, search])
