@@ -120,16 +120,17 @@ def cmd_run(args: argparse.Namespace) -> None:
 
 
 def cmd_report(args: argparse.Namespace) -> None:
+    from physrover.analysis.tables import write_csv
     from physrover.core.stats import mean_ci
 
     results = [json.loads(p.read_text()) for p in sorted(args.root.glob("*/result.json"))]
     if not results:
         raise SystemExit(f"no finished cell under {args.root}")
     args.out.mkdir(parents=True, exist_ok=True)
-    with (args.out / "runs.csv").open("w", newline="") as f:
-        writer = csv.DictWriter(f, FIELDS, extrasaction="ignore")
-        writer.writeheader()
-        writer.writerows(sorted(results, key=lambda r: (r["n_req"], r["seed"])))
+    rows = [
+        {k: r[k] for k in FIELDS} for r in sorted(results, key=lambda r: (r["n_req"], r["seed"]))
+    ]
+    write_csv(rows, list(FIELDS), args.out / "runs.csv")
     lines = ["| n_req | final G (mean +- 95% CI) | seeds | seeds that learn | best evaluation |",
              "|---|---|---|---|---|"]  # fmt: skip
     for n_req in sorted({r["n_req"] for r in results}):
