@@ -12,6 +12,9 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
   would have completed a coupling with partners;
 - ``"D-partial"``: D where the team captured, else each rover's difference to how near
   the team came to its couplings (an exploration credit, beyond the paper);
+- ``"D-regret"``: D less what the rover would have added had it stood, for one step, at
+  the POI where it was needed most (beyond the paper;
+  :func:`physrover.domain.scoring.difference.regret_difference`);
 - ``"proximity"``: MERL's dense per-step reward, each rover's nearness to the nearest
   POI not yet captured (:mod:`physrover.domain.scoring.proximity`; no coupling
   information, the signal of the hybrid's gradient learner, :mod:`physrover.learn.hybrid`);
@@ -38,7 +41,12 @@ import numpy as np
 
 from physrover.config import check
 from physrover.core.registry import CREDITS
-from physrover.domain.scoring.difference import d_plus_plus, partial_difference, step_credits
+from physrover.domain.scoring.difference import (
+    d_plus_plus,
+    partial_difference,
+    regret_difference,
+    step_credits,
+)
 from physrover.domain.scoring.influence import (
     STEP_RULES,
     indirect_difference,
@@ -138,6 +146,22 @@ class PartialCoupling(Credit):
         """Progress toward a coupling is a count of rovers in range: not defined for
         ordered, typed or final-state POIs."""
         check_counted_pois(domain, "D-partial")
+
+
+class Regret(Credit):
+    """D less each rover's regret for where it was
+    (:func:`physrover.domain.scoring.difference.regret_difference`)."""
+
+    def __call__(self, world) -> np.ndarray:
+        return regret_difference(world.state, world.n_req)
+
+    def check(self, domain) -> None:
+        """A relocated rover completes a coupling by count: not defined for ordered, typed
+        or final-state POIs, nor for agents that never count toward one."""
+        check_counted_pois(domain, "D-regret")
+        check(all(a.captures for a in domain.agents), "feedback",
+              "D-regret is not defined for agents that never capture ([[agents]] "
+              "captures = false)")  # fmt: skip
 
 
 class Proximity(Credit):
@@ -261,6 +285,7 @@ register_credit("D", Difference())
 register_credit("G", TeamScore())
 register_credit("D++", DPlusPlus())
 register_credit("D-partial", PartialCoupling())
+register_credit("D-regret", Regret())
 register_credit("proximity", Proximity())
 register_credit("ID", IndirectDifference("trajectory"))
 register_credit("ID-step", IndirectDifference("step"))

@@ -6,8 +6,9 @@ D (Eq. 1) and D++.
   ``z_-i`` removes rover i's whole trajectory: a POI counts for ``G(z_-i)`` if at some
   scored step its coupling is met *without* rover i;
 - beyond the paper, :func:`step_credits`: G, D or D++ of every step taken alone (a critic's
-  per-step target, ``[learn] critic_target = "step"``), and :func:`partial_difference`, an
-  exploration credit for episodes without a capture.
+  per-step target, ``[learn] critic_target = "step"``), :func:`partial_difference`, an
+  exploration credit for episodes without a capture, and :func:`regret_difference`, D less
+  what the rover would have added standing where it was needed most.
 
 The compiled step (:func:`physrover.domain.scoring.captures.score_team`) keeps the captures
 with and without each rover in the world's :class:`~physrover.domain.state.WorldState`, so
@@ -162,3 +163,32 @@ def partial_difference(state, n_req: np.ndarray) -> np.ndarray:
     values = state.poi_values
     soft = (progress * values).sum(-1)[:, None] - (without * values[:, None, :]).sum(-1)
     return np.where(state.score[:, None] > 0, difference(state), soft)
+
+
+def regret_difference(state, n_req: np.ndarray) -> np.ndarray:
+    """(E, R) D less each rover's regret: how much more G the team would have scored had
+    the rover, instead of its trajectory, stood at one POI at one scored step.
+
+    Beyond the paper (issue 46: trained teams crowd the most valuable POI, where a surplus
+    rover's D is 0, while the next POI is one rover short; ``experiments/plateau_reading.py``).
+    Rover i *relocated* to POI k is in range of k, and of nothing else, at the scored step
+    where most of the other rovers were in range of k: with ``c_kt(-i)`` the rovers other
+    than i in range of POI k at step t, the team scores
+    ``G_k(i) = G(z_-i) + V_k [k not captured without i, and max_t c_kt(-i) + 1 >= n_req_k]``
+    (``G(z_-i)``: D's null counterfactual, Eq. 1). The regret is
+    ``max(0, max_k G_k(i) - G(z))`` and the credit ``D_i - regret_i``. A rover that was
+    where it was needed has no regret (the credit is D); a rover in surplus at a captured POI
+    while another POI of value V was one rover short gets -V; a rover whose absence loses a
+    capture worth more than any it could complete keeps its D. Reads ``state.in_range``
+    (T + 1, E, R, K; the unscored states hold no one), the captures without each rover,
+    G and each POI's ``n_req`` (K,); POIs without rules.
+    """
+    near = np.asarray(state.in_range)  # (T + 1, E, R, K)
+    count = near.sum(axis=2, dtype=np.int64)  # (T + 1, E, K)
+    best_without = (count[:, :, None, :] - near).max(axis=0)  # (E, R, K): most others at k
+    values = np.asarray(state.poi_values, dtype=np.float64)  # (E, K)
+    completes = ~state.captured_without & (best_without + 1 >= np.asarray(n_req))
+    relocated = team_score(state.captured_without, values)
+    relocated = relocated + (completes * values[:, None, :]).max(axis=-1)  # (E, R)
+    regret = np.maximum(0.0, relocated - state.score[:, None])
+    return difference(state) - regret
