@@ -84,8 +84,13 @@ def _regret_oracle(world):
 def test_regret_credit_matches_the_plain_loop_oracle(n_req, scored):
     world = wandering_world(n_req, scored, action_seed=5)
     got = CREDITS["D-regret"](world)
-    np.testing.assert_allclose(got, _regret_oracle(world), rtol=1e-12, atol=1e-12)
+    want = _regret_oracle(world)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
     assert (got <= world.D).all() and (got < world.D).any()  # some rover has a regret
+    # D++-regret: the same regret taken from D++ (tested on its own in test_credit_variants)
+    dpp = CREDITS["D++"](world)
+    np.testing.assert_allclose(CREDITS["D++-regret"](world), dpp - (world.D - want),
+                               rtol=1e-12, atol=1e-12)  # fmt: skip
 
 
 def test_the_ccea_takes_it_as_feedback_and_the_options_are_checked():

@@ -12,8 +12,8 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
   would have completed a coupling with partners;
 - ``"D-partial"``: D where the team captured, else each rover's difference to how near
   the team came to its couplings (an exploration credit, beyond the paper);
-- ``"D-regret"``: D less what the rover would have added had it stood, for one step, at
-  the POI where it was needed most (beyond the paper;
+- ``"D-regret"``, ``"D++-regret"``: D (D++) less what the rover would have added had it
+  stood, for one step, at the POI where it was needed most (beyond the paper;
   :func:`physrover.domain.scoring.difference.regret_difference`);
 - ``"proximity"``: MERL's dense per-step reward, each rover's nearness to the nearest
   POI not yet captured (:mod:`physrover.domain.scoring.proximity`; no coupling
@@ -149,18 +149,22 @@ class PartialCoupling(Credit):
 
 
 class Regret(Credit):
-    """D less each rover's regret for where it was
+    """D (or D++) less each rover's regret for where it was
     (:func:`physrover.domain.scoring.difference.regret_difference`)."""
 
+    def __init__(self, base: str = "D"):
+        self.base = base
+
     def __call__(self, world) -> np.ndarray:
-        return regret_difference(world.state, world.n_req)
+        return regret_difference(world.state, world.n_req, self.base)
 
     def check(self, domain) -> None:
         """A relocated rover completes a coupling by count: not defined for ordered, typed
         or final-state POIs, nor for agents that never count toward one."""
-        check_counted_pois(domain, "D-regret")
+        name = f"{self.base}-regret"
+        check_counted_pois(domain, name)
         check(all(a.captures for a in domain.agents), "feedback",
-              "D-regret is not defined for agents that never capture ([[agents]] "
+              f"{name} is not defined for agents that never capture ([[agents]] "
               "captures = false)")  # fmt: skip
 
 
@@ -285,7 +289,8 @@ register_credit("D", Difference())
 register_credit("G", TeamScore())
 register_credit("D++", DPlusPlus())
 register_credit("D-partial", PartialCoupling())
-register_credit("D-regret", Regret())
+register_credit("D-regret", Regret("D"))
+register_credit("D++-regret", Regret("D++"))
 register_credit("proximity", Proximity())
 register_credit("ID", IndirectDifference("trajectory"))
 register_credit("ID-step", IndirectDifference("step"))

@@ -165,9 +165,9 @@ def partial_difference(state, n_req: np.ndarray) -> np.ndarray:
     return np.where(state.score[:, None] > 0, difference(state), soft)
 
 
-def regret_difference(state, n_req: np.ndarray) -> np.ndarray:
-    """(E, R) D less each rover's regret: how much more G the team would have scored had
-    the rover, instead of its trajectory, stood at one POI at one scored step.
+def regret(state, n_req: np.ndarray) -> np.ndarray:
+    """(E, R) each rover's regret: how much more G the team would have scored had the
+    rover, instead of its trajectory, stood at one POI at one scored step.
 
     Beyond the paper (issue 46: trained teams crowd the most valuable POI, where a surplus
     rover's D is 0, while the next POI is one rover short; ``experiments/plateau_reading.py``).
@@ -176,12 +176,11 @@ def regret_difference(state, n_req: np.ndarray) -> np.ndarray:
     than i in range of POI k at step t, the team scores
     ``G_k(i) = G(z_-i) + V_k [k not captured without i, and max_t c_kt(-i) + 1 >= n_req_k]``
     (``G(z_-i)``: D's null counterfactual, Eq. 1). The regret is
-    ``max(0, max_k G_k(i) - G(z))`` and the credit ``D_i - regret_i``. A rover that was
-    where it was needed has no regret (the credit is D); a rover in surplus at a captured POI
-    while another POI of value V was one rover short gets -V; a rover whose absence loses a
-    capture worth more than any it could complete keeps its D. Reads ``state.in_range``
-    (T + 1, E, R, K; the unscored states hold no one), the captures without each rover,
-    G and each POI's ``n_req`` (K,); POIs without rules.
+    ``max(0, max_k G_k(i) - G(z))``: 0 for a rover that was where it was needed; V for a
+    rover in surplus at a captured POI while another POI of value V was one rover short;
+    0 for a rover whose absence loses a capture worth more than any it could complete.
+    Reads ``state.in_range`` (T + 1, E, R, K; the unscored states hold no one), the
+    captures without each rover, G and each POI's ``n_req`` (K,); POIs without rules.
     """
     near = np.asarray(state.in_range)  # (T + 1, E, R, K)
     count = near.sum(axis=2, dtype=np.int64)  # (T + 1, E, K)
@@ -190,5 +189,14 @@ def regret_difference(state, n_req: np.ndarray) -> np.ndarray:
     completes = ~state.captured_without & (best_without + 1 >= np.asarray(n_req))
     relocated = team_score(state.captured_without, values)
     relocated = relocated + (completes * values[:, None, :]).max(axis=-1)  # (E, R)
-    regret = np.maximum(0.0, relocated - state.score[:, None])
-    return difference(state) - regret
+    return np.maximum(0.0, relocated - state.score[:, None])
+
+
+def regret_difference(state, n_req: np.ndarray, base: str = "D") -> np.ndarray:
+    """(E, R) the credit ``base`` ("D", Eq. 1, or "D++", :func:`d_plus_plus`) less each
+    rover's :func:`regret` (feedback "D-regret" and "D++-regret")."""
+    if base == "D":
+        return difference(state) - regret(state, n_req)
+    if base == "D++":
+        return d_plus_plus(state, n_req) - regret(state, n_req)
+    raise ValueError(f"a regret credit's base is D or D++, not {base!r}")
