@@ -28,7 +28,6 @@ interval over seeds per n_req, and how many seeds learned: final G above 0.5).
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import shutil
 import subprocess
@@ -64,24 +63,16 @@ def overrides(n_req: int, seed: int) -> list[str]:
 
 def evaluations(folder: Path) -> list[float]:
     """The evaluation returns BenchMARL's csv logger wrote, in order."""
-    files = sorted(folder.rglob("scalars/eval_reward_episode_reward_mean.csv"))
-    if not files:
-        return []
-    return [float(row[-1]) for row in csv.reader(files[-1].open()) if row]
+    from physrover.cli.benchmarl_cmd import scalar_values
 
-
-def _cpu() -> str:
-    for line in Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return "unknown"
+    return scalar_values(folder, "eval_reward_episode_reward_mean")
 
 
 def train_cell(root: Path, n_req: int, seed: int) -> dict:
     """Train one cell into ``root/<cell>`` (from the start) and write its result.json."""
     from importlib import metadata
 
-    from physrover.experiment.provenance import code_fingerprint
+    from physrover.experiment.provenance import code_fingerprint, cpu_model
 
     folder = root / cell_name(n_req, seed)
     if folder.exists():  # an interrupted run: BenchMARL's own restore is not used
@@ -100,7 +91,7 @@ def train_cell(root: Path, n_req: int, seed: int) -> dict:
         "episodes": ITERATIONS * 120, "final_G": float(np.mean(returns[-LAST:])),
         "max_eval_G": float(max(returns)), "evaluations": len(returns),
         "wall_seconds": round(wall, 1), "code": (code_fingerprint() or "?")[:12],
-        "benchmarl": metadata.version("benchmarl"), "cpu": _cpu(),
+        "benchmarl": metadata.version("benchmarl"), "cpu": cpu_model(),
         "returns": returns, "overrides": overrides(n_req, seed),
     }  # fmt: skip
     (folder / "result.json").write_text(json.dumps(result, indent=1))

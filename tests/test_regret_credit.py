@@ -8,7 +8,7 @@ import pytest
 
 from physrover.config import ConfigError, RunConfig
 from physrover.core.registry import CREDITS
-from physrover.domain.scoring.difference import regret_difference
+from physrover.domain.scoring.difference import difference, regret
 from tests.oracles import wandering_world
 
 
@@ -39,7 +39,7 @@ def test_hand_worked_surplus_rover_and_a_poi_one_short():
     # Rovers 0-2, 4: relocated to POI 1 (1 other there) it is captured: G_k = 4 + 3 = 7,
     # regret 3. Rover 3: without it POI 1 has nobody (0 + 1 < 2), POI 0 is captured
     # already: regret 0.
-    np.testing.assert_allclose(regret_difference(state, n_req)[0], [-3, -3, -3, 0, -3])
+    np.testing.assert_allclose((difference(state) - regret(state, n_req))[0], [-3, -3, -3, 0, -3])
 
 
 def test_a_needed_rover_keeps_its_d():
@@ -49,7 +49,7 @@ def test_a_needed_rover_keeps_its_d():
     # Rover 0: D = 4; moved to POI 1 the team scores 0 + 3 = 3 < 4: no regret. Rover 2:
     # D = 0, relocated anywhere it completes nothing new (POI 0 is captured without it,
     # POI 1 has no one else): no regret.
-    np.testing.assert_allclose(regret_difference(state, n_req)[0], [4, 4, 0])
+    np.testing.assert_allclose((difference(state) - regret(state, n_req))[0], [4, 4, 0])
 
 
 def _regret_oracle(world):
@@ -104,7 +104,7 @@ def test_the_ccea_takes_it_as_feedback_and_the_options_are_checked():
     ccea.run_generation()
     G, credit = ccea.rollout(np.zeros((5, 4), dtype=np.int64))
     world = ccea.env.world
-    np.testing.assert_array_equal(credit, regret_difference(world.state, world.n_req))
+    np.testing.assert_array_equal(credit, world.D - regret(world.state, world.n_req))
     with pytest.raises(ConfigError, match="D-regret is not defined for POIs with after"):
         RunConfig.from_toml('[learn]\nfeedback = "D-regret"\n[[pois]]\nvalue = 1.0\n'
                             "[[pois]]\nvalue = 2.0\nafter = [0]\n")  # fmt: skip

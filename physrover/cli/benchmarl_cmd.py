@@ -52,13 +52,18 @@ def random_return(domain: DomainConfig, episodes: int = 200, seed: int = 0) -> f
     return float(total.mean())
 
 
-def last_value(folder: Path, metric: str) -> float | None:
-    """The last value BenchMARL's csv logger wrote for ``metric`` (None if none)."""
+def scalar_values(folder: Path, metric: str) -> list[float]:
+    """The values BenchMARL's csv logger wrote for ``metric`` under ``folder``, in order."""
     files = sorted(folder.rglob(f"scalars/{metric}.csv"))
     if not files:
-        return None
-    rows = list(csv.reader(files[-1].open()))
-    return float(rows[-1][-1]) if rows else None
+        return []
+    return [float(row[-1]) for row in csv.reader(files[-1].open()) if row]
+
+
+def last_value(folder: Path, metric: str) -> float | None:
+    """The last value BenchMARL's csv logger wrote for ``metric`` (None if none)."""
+    values = scalar_values(folder, metric)
+    return values[-1] if values else None
 
 
 def _one_line(exc: BaseException) -> str:

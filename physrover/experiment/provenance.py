@@ -72,7 +72,7 @@ def _git_commit() -> str | None:
     return head + ("+dirty" if dirty else "")
 
 
-def _cpu() -> str:
+def cpu_model() -> str:
     """The CPU's model name (``/proc/cpuinfo`` on Linux, else ``platform.processor()``)."""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -118,7 +118,7 @@ def describe(from_generation: int) -> dict:
         "git": _git_commit(),
         "python": platform.python_version(),
         **{name: _version(name) for name in ("numpy", "numba", "torch", "pymunk")},
-        "cpu": _cpu(),
+        "cpu": cpu_model(),
         "llvm_cpu": _compile_target()[0],
         "cpu_features": _compile_target()[1],
         "machine": platform.machine(),

@@ -14,7 +14,7 @@ fitness methods use (``[learn] feedback``): the paper's is D (Eq. 1). Built in:
   the team came to its couplings (an exploration credit, beyond the paper);
 - ``"D-regret"``, ``"D++-regret"``: D (D++) less what the rover would have added had it
   stood, for one step, at the POI where it was needed most (beyond the paper;
-  :func:`physrover.domain.scoring.difference.regret_difference`);
+  :func:`physrover.domain.scoring.difference.regret`);
 - ``"proximity"``: MERL's dense per-step reward, each rover's nearness to the nearest
   POI not yet captured (:mod:`physrover.domain.scoring.proximity`; no coupling
   information, the signal of the hybrid's gradient learner, :mod:`physrover.learn.hybrid`);
@@ -44,7 +44,7 @@ from physrover.core.registry import CREDITS
 from physrover.domain.scoring.difference import (
     d_plus_plus,
     partial_difference,
-    regret_difference,
+    regret,
     step_credits,
 )
 from physrover.domain.scoring.influence import (
@@ -149,22 +149,21 @@ class PartialCoupling(Credit):
 
 
 class Regret(Credit):
-    """D (or D++) less each rover's regret for where it was
-    (:func:`physrover.domain.scoring.difference.regret_difference`)."""
+    """A credit ``base`` (D or D++) less each rover's regret for where it was
+    (:func:`physrover.domain.scoring.difference.regret`); ``name``: the signal's own."""
 
-    def __init__(self, base: str = "D"):
-        self.base = base
+    def __init__(self, base: Credit, name: str):
+        self.base, self.name = base, name
 
     def __call__(self, world) -> np.ndarray:
-        return regret_difference(world.state, world.n_req, self.base)
+        return self.base(world) - regret(world.state, world.n_req)
 
     def check(self, domain) -> None:
         """A relocated rover completes a coupling by count: not defined for ordered, typed
         or final-state POIs, nor for agents that never count toward one."""
-        name = f"{self.base}-regret"
-        check_counted_pois(domain, name)
+        check_counted_pois(domain, self.name)
         check(all(a.captures for a in domain.agents), "feedback",
-              f"{name} is not defined for agents that never capture ([[agents]] "
+              f"{self.name} is not defined for agents that never capture ([[agents]] "
               "captures = false)")  # fmt: skip
 
 
@@ -289,8 +288,8 @@ register_credit("D", Difference())
 register_credit("G", TeamScore())
 register_credit("D++", DPlusPlus())
 register_credit("D-partial", PartialCoupling())
-register_credit("D-regret", Regret("D"))
-register_credit("D++-regret", Regret("D++"))
+register_credit("D-regret", Regret(Difference(), "D-regret"))
+register_credit("D++-regret", Regret(DPlusPlus(), "D++-regret"))
 register_credit("proximity", Proximity())
 register_credit("ID", IndirectDifference("trajectory"))
 register_credit("ID-step", IndirectDifference("step"))

@@ -7,8 +7,8 @@ D (Eq. 1) and D++.
   scored step its coupling is met *without* rover i;
 - beyond the paper, :func:`step_credits`: G, D or D++ of every step taken alone (a critic's
   per-step target, ``[learn] critic_target = "step"``), :func:`partial_difference`, an
-  exploration credit for episodes without a capture, and :func:`regret_difference`, D less
-  what the rover would have added standing where it was needed most.
+  exploration credit for episodes without a capture, and :func:`regret`, what a rover
+  would have added standing where it was needed most (feedback "D-regret" is D less it).
 
 The compiled step (:func:`physrover.domain.scoring.captures.score_team`) keeps the captures
 with and without each rover in the world's :class:`~physrover.domain.state.WorldState`, so
@@ -190,13 +190,3 @@ def regret(state, n_req: np.ndarray) -> np.ndarray:
     relocated = team_score(state.captured_without, values)
     relocated = relocated + (completes * values[:, None, :]).max(axis=-1)  # (E, R)
     return np.maximum(0.0, relocated - state.score[:, None])
-
-
-def regret_difference(state, n_req: np.ndarray, base: str = "D") -> np.ndarray:
-    """(E, R) the credit ``base`` ("D", Eq. 1, or "D++", :func:`d_plus_plus`) less each
-    rover's :func:`regret` (feedback "D-regret" and "D++-regret")."""
-    if base == "D":
-        return difference(state) - regret(state, n_req)
-    if base == "D++":
-        return d_plus_plus(state, n_req) - regret(state, n_req)
-    raise ValueError(f"a regret credit's base is D or D++, not {base!r}")
