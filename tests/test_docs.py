@@ -328,6 +328,30 @@ def test_results_in_full_are_on_the_site_without_their_data():
     assert hooks.on_page_markdown(text, other) == text
 
 
+def test_the_changelog_links_resolve_in_the_repository_and_on_the_site():
+    """CHANGELOG.md's links resolve from the repository root, and on the site's changelog
+    page (which includes it, its links rewritten by docs/hooks.py) from docs/. CI's
+    ``mkdocs build --strict`` misses a broken one if it runs with ``--quiet``."""
+    import importlib.util
+    from types import SimpleNamespace
+
+    spec = importlib.util.spec_from_file_location("hooks", DOCS / "hooks.py")
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    text = (ROOT / "CHANGELOG.md").read_text()
+    page = SimpleNamespace(file=SimpleNamespace(src_uri=hooks.CHANGELOG))
+    config = {"config_file_path": str(ROOT / "mkdocs.yml")}
+    shown = hooks.on_page_markdown((DOCS / hooks.CHANGELOG).read_text(), page, config=config)
+    assert hooks.CHANGELOG_SNIPPET not in shown and "](docs/" in text
+    assert shown.strip().endswith(text.replace("](docs/", "](").strip())
+    link = r"\]\(([^)#]+)(?:#[^)]*)?\)"
+    for where, markdown in ((ROOT, text), (DOCS, shown)):
+        targets = [t for t in re.findall(link, markdown) if not re.match(r"[a-z]+://", t)]
+        for target in targets:
+            assert (where / target).exists(), f"{target} from {where}"
+    assert "--quiet" not in (ROOT / ".ci/run").read_text().split("mkdocs build")[1].split("\n")[0]
+
+
 def test_the_site_keeps_identifiers_whole_and_names_each_section_once():
     """Issue 44's layout points, as configuration a browser would show (checked by eye at
     1400 px in headless Chromium): table cells never break an identifier mid-word, the API
