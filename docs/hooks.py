@@ -20,7 +20,6 @@ def on_page_markdown(markdown, page, config=None, **kwargs):
     if page.file.src_uri == RESULTS:
         return markdown.replace("](../../docs/", "](../../")
     if page.file.src_uri == CHANGELOG:
-        root = Path(config["config_file_path"]).parent if config else Path.cwd()
-        changelog = (root / "CHANGELOG.md").read_text()
+        changelog = (Path(config["config_file_path"]).parent / "CHANGELOG.md").read_text()
         return markdown.replace(CHANGELOG_SNIPPET, changelog).replace("](docs/", "](")
     return markdown

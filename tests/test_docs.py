@@ -166,9 +166,23 @@ def _blocks_text(text: str, language: str) -> list[str]:
     return re.findall(rf"^```{language}\n(.*?)^```", text, re.S | re.M)
 
 
+LINK = re.compile(r"\]\(([^)#]+)(?:#[^)]*)?\)")
+"""A Markdown link's target, without its anchor."""
+
+
+def _hooks():
+    """docs/hooks.py, the MkDocs hook module (a file, not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("hooks", DOCS / "hooks.py")
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    return hooks
+
+
 def test_links_between_pages_point_at_pages():
     for page in PAGES:
-        for target in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", page.read_text()):
+        for target in LINK.findall(page.read_text()):
             if re.match(r"[a-z]+://", target):
                 continue
             assert (page.parent / target).exists(), f"{_id(page)} links to {target}"
@@ -312,20 +326,17 @@ def test_the_standing_table_on_the_site_is_the_committed_cells():
 def test_results_in_full_are_on_the_site_without_their_data():
     """RESULTS.md is a page of the site (its links to the docs rewritten by docs/hooks.py),
     its figures with it, the CSVs behind them not (46 MB the site never showed)."""
-    import importlib.util
     from types import SimpleNamespace
 
     config = (ROOT / "mkdocs.yml").read_text()
     assert "assets/results/RESULTS.md" in config.split("nav:")[1]
     assert "!assets/results/RESULTS.md" in config and "assets/results/**/*.csv" in config
-    spec = importlib.util.spec_from_file_location("hooks", DOCS / "hooks.py")
-    hooks = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(hooks)
+    hooks = _hooks()
     text = (ROOT / "experiments/results/RESULTS.md").read_text()
     page = SimpleNamespace(file=SimpleNamespace(src_uri=hooks.RESULTS))
     shown = hooks.on_page_markdown(text, page)
     site_page = DOCS / "assets/results"
-    for target in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", shown):
+    for target in LINK.findall(shown):
         if not re.match(r"[a-z]+://", target):
             assert Path(os.path.normpath(site_page / target)).exists(), target  # as the site
     other = SimpleNamespace(file=SimpleNamespace(src_uri="results.md"))
@@ -336,21 +347,17 @@ def test_the_changelog_links_resolve_in_the_repository_and_on_the_site():
     """CHANGELOG.md's links resolve from the repository root, and on the site's changelog
     page (which includes it, its links rewritten by docs/hooks.py) from docs/. CI's
     ``mkdocs build --strict`` misses a broken one if it runs with ``--quiet``."""
-    import importlib.util
     from types import SimpleNamespace
 
-    spec = importlib.util.spec_from_file_location("hooks", DOCS / "hooks.py")
-    hooks = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(hooks)
+    hooks = _hooks()
     text = (ROOT / "CHANGELOG.md").read_text()
     page = SimpleNamespace(file=SimpleNamespace(src_uri=hooks.CHANGELOG))
     config = {"config_file_path": str(ROOT / "mkdocs.yml")}
     shown = hooks.on_page_markdown((DOCS / hooks.CHANGELOG).read_text(), page, config=config)
     assert hooks.CHANGELOG_SNIPPET not in shown and "](docs/" in text
     assert shown.strip().endswith(text.replace("](docs/", "](").strip())
-    link = r"\]\(([^)#]+)(?:#[^)]*)?\)"
     for where, markdown in ((ROOT, text), (DOCS, shown)):
-        targets = [t for t in re.findall(link, markdown) if not re.match(r"[a-z]+://", t)]
+        targets = [t for t in LINK.findall(markdown) if not re.match(r"[a-z]+://", t)]
         for target in targets:
             assert (where / target).exists(), f"{target} from {where}"
     assert "--quiet" not in (ROOT / ".ci/run").read_text().split("mkdocs build")[1].split("\n")[0]
