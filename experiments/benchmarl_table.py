@@ -22,7 +22,8 @@ episode return is the team's G, Eq. 11: each step's reward is its increase).
 ``report`` writes into ``--out`` (default ``experiments/results/standing-table-benchmarl``)
 ``runs.csv`` (a row per finished cell; ``code`` is the digest of the
 installed package's sources, as in a sweep's ``runs.csv``) and ``cells.md`` (mean and 95%
-interval over seeds per n_req, and how many seeds learned: final G above 0.5).
+interval over seeds per n_req, the mean alone for one seed, and how many seeds learned:
+final G above 0.5).
 """
 
 from __future__ import annotations
@@ -128,8 +129,8 @@ def cmd_report(args: argparse.Namespace) -> None:
         finals = np.array([r["final_G"] for r in results if r["n_req"] == n_req])
         best = max(r["max_eval_G"] for r in results if r["n_req"] == n_req)
         mean, half, n = mean_ci(finals)
-        lines.append(f"| {n_req} | {mean:.2f} +- {half:.2f} | {n} | "
-                     f"{int((finals > 0.5).sum())} | {best:.2f} |")  # fmt: skip
+        cell = f"{mean:.2f} +- {half:.2f}" if n > 1 else f"{mean:.2f}"  # no interval of 1
+        lines.append(f"| {n_req} | {cell} | {n} | {int((finals > 0.5).sum())} | {best:.2f} |")
     (args.out / "cells.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
