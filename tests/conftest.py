@@ -1,7 +1,9 @@
 """Shared test helpers."""
 
+import importlib.util
 import json
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -36,6 +38,18 @@ def pytest_collection_modifyitems(config, items):
         name = item.module.__name__.rsplit(".", 1)[-1]
         if name not in SPREAD and item.get_closest_marker("xdist_group") is None:
             item.add_marker(pytest.mark.xdist_group(name))
+
+
+def load_file(path, name, monkeypatch=None):
+    """The file at ``path`` (a script of ``experiments/`` or ``docs/``, not in a package)
+    imported as module ``name``. With ``monkeypatch`` it is in ``sys.modules`` for the test
+    only (dataclasses look their module up there by name)."""
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    if monkeypatch is not None:
+        monkeypatch.setitem(sys.modules, name, module)
+    spec.loader.exec_module(module)
+    return module
 
 
 def comparable_rows(rows):

@@ -4,13 +4,13 @@ file, so the cell's overrides, its final G (the mean of the last evaluations), r
 after an interrupted cell and the report's hand-worked intervals are checked here."""
 
 import csv
-import importlib.util
 import json
 import sys
 from importlib import metadata
 from pathlib import Path
 
 import pytest
+from conftest import load_file
 
 ROOT = Path(__file__).parents[1]
 METRIC = "eval_reward_episode_reward_mean"
@@ -18,12 +18,7 @@ METRIC = "eval_reward_episode_reward_mean"
 
 @pytest.fixture
 def table(monkeypatch):
-    spec = importlib.util.spec_from_file_location(
-        "benchmarl_table", ROOT / "experiments" / "benchmarl_table.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, "benchmarl_table", module)
-    spec.loader.exec_module(module)
+    module = load_file(ROOT / "experiments" / "benchmarl_table.py", "benchmarl_table", monkeypatch)
     version = metadata.version  # BenchMARL itself is not installed with the test extras
     monkeypatch.setattr(metadata, "version", lambda d: "9.9" if d == "benchmarl" else version(d))
     return module

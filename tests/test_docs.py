@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import load_file
 
 from physrover.cli import build_parser
 from physrover.config import RunConfig
@@ -172,12 +173,7 @@ LINK = re.compile(r"\]\(([^)#]+)(?:#[^)]*)?\)")
 
 def _hooks():
     """docs/hooks.py, the MkDocs hook module (a file, not a package)."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("hooks", DOCS / "hooks.py")
-    hooks = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(hooks)
-    return hooks
+    return load_file(DOCS / "hooks.py", "hooks")
 
 
 def test_links_between_pages_point_at_pages():

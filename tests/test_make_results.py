@@ -3,13 +3,13 @@ chunks of seeds on machines that do not keep each other's run directories gives 
 runs.csv rows, cells.md table and figure numbers as the whole sweep found on one disk."""
 
 import csv
-import importlib.util
 import json
 import math
 import sys
 from pathlib import Path
 
 import pytest
+from conftest import load_file
 
 from physrover.analysis.claim_tests import (
     claim_comparisons,
@@ -39,12 +39,7 @@ n_rovers = [3, 4]
 
 @pytest.fixture
 def make_results(monkeypatch):
-    spec = importlib.util.spec_from_file_location(
-        "make_results", ROOT / "experiments" / "make_results.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, "make_results", module)  # for its dataclasses
-    spec.loader.exec_module(module)
+    module = load_file(ROOT / "experiments" / "make_results.py", "make_results", monkeypatch)
 
     def run(root: Path, out: Path, last: int = 50) -> None:
         monkeypatch.setattr(module, "OUT", out)
