@@ -3,23 +3,29 @@
     python experiments/exploration.py [--episodes 500]
 
 Plays fresh episodes (``RoverVectorEnv(N, n_req=...)``, ``reset(seed=123)``, the paper's
-task otherwise) under two untrained behaviours: uniform random actions every step (MADDPG's
-uniform warm-up) and the CCEA's initial random policies (one per rover, drawn as the CCEA
-draws its first population). Writes ``results/exploration.{csv,md}``: per n_req and
-behaviour, the share of episodes with at least one capture, the mean G, and the median
-over rovers of each rover's farthest distance from its start (world units).
+task otherwise) under untrained behaviours: uniform random actions every step (MADDPG's
+uniform warm-up), the CCEA's initial random policies (one per rover, drawn as the CCEA
+draws its first population) and MAPPO's initial shared policy as it samples its first
+episodes (its network as the trainer initialises it, one per 10 episodes, N(mean, std)
+clipped to [-1, 1]), at its default std (``init_log_std = -0.5``) and at a wider one
+(``init_log_std = 1``). Writes ``results/exploration.{csv,md}``: per n_req and
+behaviour, the share of episodes with a capture, the mean G, and the median over rovers
+of each rover's farthest distance from its start (world units).
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from physrover import RoverVectorEnv
+from physrover.analysis.tables import write_csv
 from physrover.learn.policies import PolicyLayout
+from physrover.marl.common import torch_generator
+from physrover.marl.mappo import Agent, MAPPOConfig
 
 OUT = Path(__file__).parent / "results"
 
@@ -36,12 +42,28 @@ def play(env: RoverVectorEnv, act) -> tuple[np.ndarray, np.ndarray]:
     return env.world.G.copy(), farthest
 
 
+def mappo_start(env: RoverVectorEnv, init_log_std: float, rng, group: int = 10):
+    """MAPPO's first sampled actions: a freshly initialised agent per ``group`` teams."""
+    shape = env.single_observation_space.shape  # (R, n_obs)
+    agents = [
+        Agent(*shape, MAPPOConfig(), torch_generator(i)) for i in range(env.num_envs // group)
+    ]
+
+    def act(obs):
+        with torch.no_grad():
+            chunks = torch.from_numpy(obs).split(group)
+            mean = torch.cat([a.mean(x) for a, x in zip(agents, chunks, strict=True)]).numpy()
+        return np.clip(mean + rng.normal(0, np.exp(init_log_std), mean.shape), -1, 1)
+
+    return act
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=500)
     args = parser.parse_args()
     rows = []
-    for n_req in (1, 3, 4, 5, 6):
+    for n_req in (1, 2, 3, 4, 5, 6):
         env = RoverVectorEnv(args.episodes, n_req=n_req)
         shape = (args.episodes, env.config.n_rovers)
         rng = np.random.default_rng(0)
@@ -52,6 +74,8 @@ def main() -> None:
                 -1, 1, (*shape, 2)
             ),
             "initial CCEA policies": policy,
+            "initial MAPPO policy, std 0.61": mappo_start(env, -0.5, rng),
+            "initial MAPPO policy, std 2.72": mappo_start(env, 1.0, rng),
         }
         for name, act in behaviours.items():
             G, farthest = play(env, act)
@@ -60,10 +84,7 @@ def main() -> None:
                          "mean_G": round(float(G.mean()), 4),
                          "median_farthest": round(float(np.median(farthest)), 2)})  # fmt: skip
     OUT.mkdir(parents=True, exist_ok=True)
-    with open(OUT / "exploration.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(rows, list(rows[0]), OUT / "exploration.csv")
     lines = ["| n_req | behaviour | episodes with a capture | mean G | median farthest (units) |",
              "|---|---|---|---|---|"]  # fmt: skip
     for r in rows:

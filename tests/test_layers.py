@@ -140,7 +140,7 @@ def test_the_tree_reads_from_the_door():
     assert not long, long
 
 
-MAX_EXPERIMENTS = 1200  # 900 until issue 46's BenchMARL driver and plateau reading
+MAX_EXPERIMENTS = 1210  # 900 until issue 46's BenchMARL driver, plateau reading and MAPPO start
 
 
 def test_experiments_hold_figure_choices_not_a_second_package():
