@@ -272,6 +272,17 @@ def test_the_results_page_table_is_the_committed_sweep_s():
             assert float(cell.split("+-")[0]) == round(final[method, n_req], 2), (method, n_req)
 
 
+def test_every_shipped_sweep_is_a_row_of_what_was_run():
+    """A number's sweep file, commit, seeds and compute are one look away: the table under
+    "What was run" in RESULTS.md names every shipped sweep (the smoke test aside)."""
+    from physrover.experiment.sweep import shipped_sweeps
+
+    text = (ROOT / "experiments/results/RESULTS.md").read_text()
+    section = text.split("\n## What was run\n")[1].split("\n## ")[0]
+    listed = set(re.findall(r"^\| `([\w.-]+)`", section, re.MULTILINE))
+    assert sorted(set(shipped_sweeps()) - {"smoke"} - listed) == []
+
+
 def test_the_standing_table_on_the_site_is_the_committed_cells():
     """Every cell of the Results page's standing table is the committed cells.md value
     of the sweep its row names (mean and 95% interval, as rounded there)."""
