@@ -45,9 +45,8 @@ def play(env: RoverVectorEnv, act) -> tuple[np.ndarray, np.ndarray]:
 def mappo_start(env: RoverVectorEnv, init_log_std: float, rng, group: int = 10):
     """MAPPO's first sampled actions: a freshly initialised agent per ``group`` teams."""
     shape = env.single_observation_space.shape  # (R, n_obs)
-    agents = [
-        Agent(*shape, MAPPOConfig(), torch_generator(i)) for i in range(env.num_envs // group)
-    ]
+    n = -(-env.num_envs // group)  # the last agent plays the remainder
+    agents = [Agent(*shape, MAPPOConfig(), torch_generator(i)) for i in range(n)]
 
     def act(obs):
         with torch.no_grad():
