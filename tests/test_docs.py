@@ -330,6 +330,61 @@ def test_the_standing_table_on_the_site_is_the_committed_cells():
             assert shown == expected, (parts[0], n_req, shown, expected)
 
 
+def _cells_md(path: Path) -> dict[tuple[str, ...], tuple[str, int]]:
+    """{(method, n_req, *grid values): (mean +- CI, seeds)} of a committed cells.md."""
+    cells = {}
+    for line in path.read_text().splitlines():
+        parts = [c.strip() for c in line.strip("|").split("|")]
+        if line.startswith("| ") and len(parts) >= 4 and parts[1].isdigit():
+            cells[tuple(parts[:-2])] = (parts[-2], int(parts[-1]))
+    return cells
+
+
+def test_the_rows_short_of_seeds_on_the_site_are_the_committed_runs():
+    """The Results page's table of rows still short of 10 seeds (MAPPO, its wide-std row,
+    IPPO) shows each cell as the committed runs have it: each seed's final G in seed order,
+    "X on each", "mean +- CI (seeds)" as cells.md rounds it, or "not yet" with no run."""
+    import csv
+
+    results = ROOT / "experiments/results"
+    rows = {"MAPPO,": ("standing-table-marl", ("true",)),
+            "MAPPO with": ("mappo-wide-std", ()),
+            "IPPO": ("standing-table-marl", ("false",))}  # fmt: skip
+    page = (DOCS / "results.md").read_text()
+    start = page.index("| method | n_req 1 |", page.index("short of 10 seeds"))
+    table = page[start:].split("\n\n")[0].splitlines()[2:]
+    checked = set()
+    for line in table:
+        parts = [c.strip() for c in line.strip("|").split("|")]
+        key = next((k for k in rows if parts[0].startswith(k)), None)
+        if key is None:  # MADDPG and BenchMARL: tables of their own
+            continue
+        sweep, grid = rows[key]
+        assert parts[7] == f"`{sweep}`", parts[0]
+        runs = list(csv.DictReader((results / sweep / "runs.csv").open()))
+        runs = [r for r in runs if tuple(r[f] for f in r if f.startswith("mappo.")) == grid]
+        cells = _cells_md(results / sweep / "cells.md")
+        for n_req, shown in enumerate(parts[1:7], start=1):
+            cell = sorted(
+                (r for r in runs if int(r["n_req"]) == n_req), key=lambda r: int(r["seed"])
+            )
+            finals = [f"{float(r['final_G']):.2f}" for r in cell]
+            shown = shown.replace("**", "")
+            where = (parts[0], n_req, shown)
+            if shown == "not yet":
+                assert finals == [], where
+            elif shown.endswith(" on each"):
+                assert finals and set(finals) == {shown.removesuffix(" on each")}, where
+            elif "+-" in shown:
+                value, seeds = re.fullmatch(r"(.+ \+- \S+) \((\d+)\)", shown).groups()
+                assert cells[("mappo", str(n_req)) + grid] == (value, int(seeds)), where
+                assert len(finals) == int(seeds), where
+            else:
+                assert shown.split(", ") == finals, where
+        checked.add(key)
+    assert checked == set(rows)
+
+
 def test_results_in_full_are_on_the_site_without_their_data():
     """RESULTS.md is a page of the site (its links to the docs rewritten by docs/hooks.py),
     its figures with it, the CSVs behind them not (46 MB the site never showed)."""
