@@ -38,6 +38,8 @@ def reading(run_dir: Path, episodes: int) -> dict:
     group = near.sum(axis=2).max(axis=0)  # (E, K) most rovers at POI k at any one step
     idle = (~near.any(axis=(0, 3))).sum(axis=1)  # (E,) rovers never near any POI
     n_req = config.domain.n_req
+    # a gradient-based trainer (MAPPO...) learns from its own reward, not [learn] feedback
+    feedback = config.trainer.reward if config.trainer is not None else config.learn.feedback
     if not np.array_equal(captured, group >= n_req):  # the paper's rule: n_req at one step
         raise SystemExit(f"{run_dir}: captures are not n_req rovers at once (POI rules?)")
     values = config.domain.poi_values
@@ -48,7 +50,7 @@ def reading(run_dir: Path, episodes: int) -> dict:
     return {
         "run": run_dir.name,
         "method": config.learn.method,
-        "feedback": config.learn.feedback,
+        "feedback": feedback,
         "n_req": config.domain.n_req,
         "seed": config.learn.seed,
         "G": float(world.G.mean()),
