@@ -9,7 +9,10 @@ of ``poi_values``); the most frequent set of captured POIs and its share of the 
 per POI, the most rovers within d_cap of it at any one step (the size of the group that
 goes there; mean over episodes); the rovers never within d_cap of any POI; the surplus
 rovers (beyond n_req, summed over the captured POIs); and the share of episodes in which
-a POI was left uncaptured with n_req - 1 rovers at it at once ("one short"). Writes
+a POI was left uncaptured with n_req - 1 rovers at it at once ("one short"); and how far
+the rovers end from the POIs (the median over episodes and rovers of a rover's distance to
+its nearest POI at the last step, world units: a policy that never leaves the start, at
+the centre of the paper's ring of radius 15, ends about 14 away). Writes
 ``results/NAME.{csv,md}`` (NAME: ``plateau_reading`` unless given).
 """
 
@@ -37,6 +40,8 @@ def reading(run_dir: Path, episodes: int) -> dict:
     near = world.state.in_range  # (T + 1, E, R, K): rover r within d_cap of POI k at step t
     group = near.sum(axis=2).max(axis=0)  # (E, K) most rovers at POI k at any one step
     idle = (~near.any(axis=(0, 3))).sum(axis=1)  # (E,) rovers never near any POI
+    rovers, pois = world.state.rover_positions, world.state.poi_positions  # (E, R | K, 2)
+    to_poi = np.linalg.norm(rovers[:, :, None] - pois[:, None], axis=-1)  # (E, R, K) at the end
     n_req = config.domain.n_req
     # a gradient-based trainer (MAPPO...) learns from its own reward, not [learn] feedback
     feedback = config.trainer.reward if config.trainer is not None else config.learn.feedback
@@ -61,6 +66,7 @@ def reading(run_dir: Path, episodes: int) -> dict:
         "idle_rovers": float(idle.mean()),
         "surplus_rovers": float((np.maximum(group - n_req, 0) * captured).sum(axis=1).mean()),
         "one_short": float(((group == n_req - 1) & ~captured).any(axis=1).mean()),
+        "end_to_poi": float(np.median(to_poi.min(axis=-1))),
     }
 
 

@@ -34,7 +34,13 @@ def _episodes():
 
 def _reading(monkeypatch, config, near, capture_step):
     module = load_file(ROOT / "experiments" / "plateau_reading.py", "plateau_reading")
-    state = SimpleNamespace(in_range=near, capture_step=capture_step)
+    # at the end, POIs at (+-10, 0), (0, +-10); rover r at (r, 0), but rover 4 of episode 1
+    # at (0, 13): distances to the nearest POI 10, 9, 8, 7, 6 and 10, 9, 8, 7, 3
+    pois = np.array([[10.0, 0.0], [-10.0, 0.0], [0.0, 10.0], [0.0, -10.0]])
+    rovers = np.stack([np.arange(5.0), np.zeros(5)], axis=-1)[None].repeat(2, axis=0)
+    rovers[1, 4] = (0.0, 13.0)
+    state = SimpleNamespace(in_range=near, capture_step=capture_step, rover_positions=rovers,
+                            poi_positions=pois[None].repeat(2, axis=0))  # fmt: skip
     env = SimpleNamespace(world=SimpleNamespace(state=state, G=np.array([4.0, 3.0])))
     monkeypatch.setattr(module, "load_run_config", lambda run_dir: config)
     monkeypatch.setattr(module, "play_champion", lambda run_dir, episodes: (0, env))
@@ -55,6 +61,7 @@ def test_every_column_is_the_hand_worked_value(monkeypatch):
         "most_common_set": "{4}", "its_share": 0.5,  # a tie: the first episode's set
         "group_at_1": 1.0, "group_at_2": 1.0, "group_at_3": 0.5, "group_at_4": 1.5,
         "idle_rovers": 0.5, "surplus_rovers": 0.5, "one_short": 0.5,
+        "end_to_poi": 8.0,  # the median of 10, 9, 8, 7, 6, 10, 9, 8, 7, 3
     }  # fmt: skip
 
 
