@@ -79,13 +79,11 @@ def main() -> None:
     rows = [reading(run, args.episodes) for run in args.runs]
     OUT.mkdir(exist_ok=True)
     write_csv(rows, list(rows[0]), OUT / f"{args.name}.csv")
-    columns = list(rows[0])
-    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    for row in rows:
-        cells = [f"{v:.2f}" if isinstance(v, float) else str(v) for v in row.values()]
-        lines.append("| " + " | ".join(cells) + " |")
-    (OUT / f"{args.name}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    lines = [list(rows[0]), ["---"] * len(rows[0])]
+    lines += [[f"{v:.2f}" if isinstance(v, float) else str(v) for v in r.values()] for r in rows]
+    table = "".join("| " + " | ".join(cells) + " |\n" for cells in lines)
+    (OUT / f"{args.name}.md").write_text(table)
+    print(table, end="")
 
 
 if __name__ == "__main__":

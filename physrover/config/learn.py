@@ -98,12 +98,16 @@ class LearnConfig(ConfigBase):
     played at coupling c (each POI's ``min(c, n_req)``), which goes up by one each time the
     champion team scores ``curriculum_threshold`` of the POIs' total value
     ``curriculum_patience`` generations in a row. The learning curve is always at the
-    domain's coupling."""
+    domain's coupling. A gradient-based trainer (``method = "mappo"``...) follows it too:
+    its training episodes at the coupling, its deterministic policy's evaluation episodes
+    (at the domain's coupling) rescored at it for the rule, logging points counted for
+    generations (:meth:`~physrover.marl.common.Trainer.follow_curriculum`)."""
     curriculum_threshold: float = 0.5
     """The fraction of the POIs' total value (sum of V_k) the champion's mean G at the
     training coupling must reach for the coupling to tighten."""
     curriculum_patience: int = 10
-    """Generations in a row the champion must reach ``curriculum_threshold``."""
+    """Generations in a row (a trainer's: logging points) the champion must reach
+    ``curriculum_threshold``."""
     checkpoint_every: int = 100
     """Write a checkpoint every this many generations (and at the end)."""
 
@@ -139,8 +143,6 @@ class LearnConfig(ConfigBase):
         """The coupling curriculum's options (those needing the domain: RunConfig's)."""
         check(self.curriculum_start >= 0, "curriculum_start",
               f"must be >= 0 (0: off), got {self.curriculum_start}")  # fmt: skip
-        check(self.curriculum_start == 0 or self.method not in TRAINERS, "curriculum_start",
-              f"is the CCEA's; {self.method!r} is a gradient-based trainer")  # fmt: skip
         check(
             0.0 < self.curriculum_threshold <= 1.0,
             "curriculum_threshold",

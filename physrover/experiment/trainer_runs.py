@@ -7,7 +7,8 @@ policies as CCEA genomes, so ``render`` and ``evaluate`` play them), state.npz/s
 an uninterrupted one; trained by the one run loop (:mod:`physrover.experiment.training`).
 
 A row of metrics.csv is one iteration, in columns named for what they hold:
-``iteration`` (from 1), ``eval_G``, ``train_G_mean``, the trainer's own losses
+``iteration`` (from 1), ``eval_G``, ``train_G_mean``, under a coupling curriculum
+``train_n_req`` (the coupling the iteration trained at), the trainer's own losses
 (``Trainer.STATS``: MAPPO's and IPPO's ``policy_loss``, ``value_loss``, ``entropy``,
 ``approx_kl``, ``clip_fraction``, ``std``; MADDPG's ``critic_loss``, ``actor_loss``,
 ``q_mean``, ``updates``), ``wall_seconds``, then ``episodes`` and ``env_steps`` (training
@@ -25,16 +26,19 @@ from pathlib import Path
 from physrover.config import RunConfig
 from physrover.core.registry import TRAINERS
 from physrover.experiment.store import METRICS, metrics_columns
+from physrover.learn.curriculum import CouplingCurriculum
 from physrover.learn.stats import stats_header
 
 LEGACY_COLUMNS = stats_header() + ["episodes", "env_steps"]
 """metrics.csv columns of a trainer's run made by physrover 0.4 or 0.5."""
 
 
-def trainer_columns(trainer_class) -> list[str]:
-    """metrics.csv columns of a run of ``trainer_class`` (module docstring)."""
-    return ["iteration", "eval_G", "train_G_mean", *trainer_class.STATS, "wall_seconds",
-            "episodes", "env_steps"]  # fmt: skip
+def trainer_columns(trainer_class, curriculum: bool = False) -> list[str]:
+    """metrics.csv columns of a run of ``trainer_class`` (module docstring), with
+    ``train_n_req`` under a coupling curriculum."""
+    coupling = ["train_n_req"] if curriculum else []
+    return ["iteration", "eval_G", "train_G_mean", *coupling, *trainer_class.STATS,
+            "wall_seconds", "episodes", "env_steps"]  # fmt: skip
 
 
 def trainer_row(stats: dict, columns: list[str]) -> dict:
@@ -60,13 +64,18 @@ class TrainerLearner:
         self.config = config
         self.trainer_class = TRAINERS[config.learn.method].load()
         own = metrics_columns(out / METRICS) if resume else None
-        self.columns = own if own == LEGACY_COLUMNS else trainer_columns(self.trainer_class)
+        curriculum = config.learn.curriculum_start > 0
+        self.columns = own if own == LEGACY_COLUMNS else trainer_columns(self.trainer_class,
+                                                                         curriculum)  # fmt: skip
         self.label = f"{config.learn.method} iteration"
         self.total = config.trainer.total_iterations
         self.model = None
 
     def build(self):
         self.model = self.trainer_class(self.config.trainer, self.config.domain)
+        curriculum = CouplingCurriculum.of(self.config)  # [learn] curriculum_start, or None
+        if curriculum is not None:
+            self.model.follow_curriculum(curriculum)
         return self.model
 
     def next_row(self) -> dict:

@@ -44,10 +44,9 @@ from physrover.config import RunConfig
 from physrover.core.compiled import dims
 from physrover.core.trees import flatten, unflatten
 from physrover.domain.scoring.credit import team_credit
-from physrover.domain.scoring.rules import PoiRules
 from physrover.envs.gymnasium_env import RoverVectorEnv, generator_from_state, team_spaces
 from physrover.learn.classes import team_layout
-from physrover.learn.curriculum import CouplingCurriculum, score_at_coupling
+from physrover.learn.curriculum import CouplingCurriculum, recorded_G, replay_rules
 from physrover.learn.eval_team import BestTeam
 from physrover.learn.evolution import evolve, evolve_elites
 from physrover.learn.fitness import Problem, make_method
@@ -92,14 +91,10 @@ class CCEA:
             self.n_played * cfg.rollouts + cfg.eval_episodes, config=d,
             fresh_teams=cfg.eval_episodes, start_groups=cfg.rollouts)  # fmt: skip
         self.env.reset(seed=int(env_seq.integers(2**31)))
-        self.curriculum = None  # a coupling curriculum ([learn] curriculum_start)
-        if cfg.curriculum_start:
-            self.curriculum = CouplingCurriculum(np.array(d.n_req_per_poi), cfg.curriculum_start,
-                                                 cfg.curriculum_threshold,
-                                                 cfg.curriculum_patience)  # fmt: skip
+        self.curriculum = CouplingCurriculum.of(config)  # [learn] curriculum_start, or None
+        if self.curriculum is not None:
             self.env.world.set_coupling(self.curriculum.n_req)
-            world = self.env.world  # the rules its rescoring replays captures under
-            self._rules = world.plan.step.rules or PoiRules.build(d, world.n_teams, always=True)
+            self._rules = replay_rules(self.env.world)  # its rescoring's, built once
         self.fitness = np.zeros((self.n_rovers, self.k))
         self._pairs = None  # the trajectories' (s, a) pairs (_trajectories)
         # the fitness each policy carries into softmax team formation (NaN: not scored yet)
@@ -280,9 +275,7 @@ class CCEA:
         world = self.env.world
         evaluated = slice(self.n_played * self.config.learn.rollouts, None)
         values = world.state.poi_values[evaluated]
-        G = score_at_coupling(world.state.in_range[:, evaluated], values,
-                              self.curriculum.target, world.plan.step.t_final,
-                              self._rules)  # fmt: skip
+        G = recorded_G(world, self.curriculum.target, evaluated, self._rules)
         if self.curriculum.observe(champion_G, float(values.sum(axis=1).mean())):
             world.set_coupling(self.curriculum.n_req)
         return float(G.mean())

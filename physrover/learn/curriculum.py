@@ -23,6 +23,7 @@ import numpy as np
 
 from physrover.domain.scoring.difference import team_score
 from physrover.domain.scoring.influence import replay_captures
+from physrover.domain.scoring.rules import PoiRules
 
 
 def score_at_coupling(in_range: np.ndarray, poi_values: np.ndarray, n_req: np.ndarray,
@@ -41,6 +42,22 @@ def score_at_coupling(in_range: np.ndarray, poi_values: np.ndarray, n_req: np.nd
     return team_score(captured, poi_values)[:, 0]
 
 
+def replay_rules(world) -> PoiRules:
+    """The POI rules the captures of ``world`` (a :class:`~physrover.domain.world.RoverWorld`)
+    are replayed under: its own, or for the paper's POIs (which have none) the rules that
+    are the paper's."""
+    return world.plan.step.rules or PoiRules.build(world.config, world.n_teams, always=True)
+
+
+def recorded_G(world, n_req: np.ndarray, rows=slice(None), rules=None) -> np.ndarray:
+    """(E',) G of the episodes ``rows`` that ``world`` played last, at coupling ``n_req``
+    (K,) int: :func:`score_at_coupling` of its in-range records under ``rules``
+    (:func:`replay_rules` of the world if not given; pass them to save building them)."""
+    rules = replay_rules(world) if rules is None else rules
+    return score_at_coupling(world.state.in_range[:, rows], world.state.poi_values[rows], n_req,
+                             world.plan.step.t_final, rules)  # fmt: skip
+
+
 class CouplingCurriculum:
     """The training coupling of a run and the rule that tightens it (module docstring).
 
@@ -56,6 +73,16 @@ class CouplingCurriculum:
         self.threshold, self.patience = float(threshold), int(patience)
         self.coupling = int(start)
         self.streak = 0
+
+    @classmethod
+    def of(cls, config) -> CouplingCurriculum | None:
+        """The curriculum of a :class:`~physrover.config.RunConfig` (``[learn]
+        curriculum_start``, ``_threshold``, ``_patience``), or None without one."""
+        learn = config.learn
+        if not learn.curriculum_start:
+            return None
+        return cls(np.array(config.domain.n_req_per_poi), learn.curriculum_start,
+                   learn.curriculum_threshold, learn.curriculum_patience)  # fmt: skip
 
     @property
     def n_req(self) -> np.ndarray:
@@ -79,6 +106,16 @@ class CouplingCurriculum:
         self.streak = 0
         return True
 
+    def follow(self, played, trained, rules=None) -> None:
+        """The rule for a learner that evaluates at the domain's coupling (a gradient-based
+        trainer, :class:`~physrover.marl.common.Trainer`): the episodes world ``played``
+        played last (the evaluation's, at the domain's coupling) rescored at the training
+        coupling, the mean of their G observed; if the coupling tightens, world ``trained``
+        plays the next training episodes at the new one. ``rules``: as :func:`recorded_G`."""
+        G = recorded_G(played, self.n_req, rules=rules)
+        if self.observe(float(G.mean()), float(played.state.poi_values.sum(axis=1).mean())):
+            trained.set_coupling(self.n_req)
+
     def state(self) -> dict:
         return {"coupling": self.coupling, "streak": self.streak}
 
@@ -86,4 +123,4 @@ class CouplingCurriculum:
         self.coupling, self.streak = int(state["coupling"]), int(state["streak"])
 
 
-__all__ = ["CouplingCurriculum", "score_at_coupling"]
+__all__ = ["CouplingCurriculum", "recorded_G", "replay_rules", "score_at_coupling"]

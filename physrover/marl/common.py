@@ -1,11 +1,10 @@
 """Pieces shared by the gradient-based MARL baselines (:mod:`.mappo`, :mod:`.maddpg`).
 
-What lives here is what both trainers need word for word: the config fields they share,
-seeding (one ``torch.Generator`` per random stream, never torch's global RNG), network
-builders, ``soft_update``, ``gae``, running whole episodes on the vector env, and
-:class:`Trainer`, the bookkeeping of an iteration (counters, evaluation at logging points,
-wall time) and of checkpoints (every network, optimiser, generator and env RNG as
-``(arrays, meta)``, the shape :meth:`physrover.learn.ccea.CCEA.state` uses).
+What both trainers need word for word: seeding (one ``torch.Generator`` per random
+stream, never torch's global RNG), network builders, ``soft_update``, ``gae``, whole
+episodes on the vector env, and :class:`Trainer`: the bookkeeping of an iteration (counters,
+evaluation at logging points, a coupling curriculum, wall time) and of checkpoints (every
+network, optimiser, generator and env RNG as ``(arrays, meta)``, as ``CCEA.state``).
 
 Conventions: arrays are time-major inside an iteration, ``(T, E, R, ...)`` for T steps of E
 teams of R rovers; observations are ``(..., R, n_obs)`` float32 and actions ``(..., R, 2)``
@@ -26,6 +25,7 @@ from torch import nn
 from physrover.config import DomainConfig
 from physrover.domain.scoring.credit import step_rewards
 from physrover.envs.gymnasium_env import RoverVectorEnv, team_spaces
+from physrover.learn.curriculum import replay_rules
 from physrover.marl.configs import MARLConfig  # noqa: F401  (re-exported)
 
 # ----------------------------------------------------------------------------------------------
@@ -211,10 +211,10 @@ class Trainer:
         self.gen = torch_generator(draw_seed)
         self.env = RoverVectorEnv(config.num_envs, config=self.domain)
         self.env.reset(seed=env_seed)
-        self.eval_env = RoverVectorEnv(
-            config.eval_episodes, config=self.domain, fresh_teams=config.eval_episodes
-        )
+        self.eval_env = RoverVectorEnv(config.eval_episodes, config=self.domain,
+                                       fresh_teams=config.eval_episodes)  # fmt: skip
         self.eval_env.reset(seed=eval_seed)
+        self.curriculum = None  # a coupling curriculum: follow_curriculum()
         self.iterations = 0
         """Iterations completed."""
         self.wall_seconds = 0.0
@@ -238,6 +238,15 @@ class Trainer:
 
     def _load_extra_state(self, arrays: dict[str, np.ndarray], meta: dict) -> None:
         pass
+
+    def follow_curriculum(self, curriculum) -> None:
+        """Before the first iteration: train at the coupling of ``curriculum`` (a
+        :class:`~physrover.learn.curriculum.CouplingCurriculum`), which tightens on the
+        evaluations (at the domain's coupling) rescored at it, ``patience`` logging points
+        in a row; ``iteration()`` then reports ``train_n_req``."""
+        self.curriculum = curriculum
+        self._rules = replay_rules(self.eval_env.world)
+        self.env.world.set_coupling(curriculum.n_req)
 
     # -- one iteration -----------------------------------------------------------------------
 
@@ -269,19 +278,24 @@ class Trainer:
         Keys: ``iteration`` (from 1), ``episodes`` and ``env_steps`` (cumulative, training
         only), ``eval_G`` (mean G of the deterministic policies on ``eval_episodes`` fresh
         episodes after this iteration's update; NaN when this is not a logging point),
-        ``train_G_mean`` (mean G of this iteration's training episodes), the algorithm's
+        ``train_G_mean`` (mean G of this iteration's training episodes, at ``train_n_req``
+        under a curriculum: :meth:`follow_curriculum`), the algorithm's
         losses, ``wall_seconds`` (cumulative, includes evaluation) and
         ``env_steps_per_second`` (this iteration's training team steps over its training
         time: collection and update, without evaluation).
         """
         start = time.perf_counter()
         stats: dict[str, float] = {}
+        if self.curriculum is not None:  # the coupling this iteration trains at
+            stats["train_n_req"] = int(self.curriculum.n_req.max())
         G = self._train(stats)
         trained = time.perf_counter()
         self.iterations += 1
         eval_G = math.nan
         if evaluate and self.iterations % self.config.log_every == 0:
             eval_G = self.evaluate()
+            if self.curriculum is not None:
+                self.curriculum.follow(self.eval_env.world, self.env.world, self._rules)
         self.wall_seconds += time.perf_counter() - start
         return {
             "iteration": self.iterations,
@@ -300,8 +314,7 @@ class Trainer:
         Without ``seed``: on ``eval_episodes`` episodes of the dedicated evaluation stream,
         which advances (each call sees new start states; part of the checkpoint). With
         ``seed``: on ``episodes`` (default ``eval_episodes``) episodes of a new env, episode i
-        starting like ``RoverEnv.reset(seed=seed + i)``; the trainer's streams are untouched.
-        """
+        starting like ``RoverEnv.reset(seed=seed + i)``; the trainer's streams are untouched."""
         if seed is None:
             if episodes not in (None, self.config.eval_episodes):
                 raise ValueError("evaluate(episodes=N) needs a seed for the N fresh episodes")
@@ -338,6 +351,8 @@ class Trainer:
             "eval_env_rng": self.eval_env.rng_states(),
             "extra": extra_meta,
         }
+        if self.curriculum is not None:
+            meta["curriculum"] = self.curriculum.state()
         return arrays, meta
 
     def load_state(self, arrays: dict[str, np.ndarray], meta: dict) -> None:
@@ -363,6 +378,9 @@ class Trainer:
         self.wall_seconds = float(meta["wall_seconds"])
         self.env.set_rng_states(meta["env_rng"])
         self.eval_env.set_rng_states(meta["eval_env_rng"])
+        if self.curriculum is not None:
+            self.curriculum.load(meta["curriculum"])
+            self.env.world.set_coupling(self.curriculum.n_req)
         extra = {k[len("extra/") :]: v for k, v in arrays.items() if k.startswith("extra/")}
         self._load_extra_state(extra, meta["extra"])
 
