@@ -73,6 +73,22 @@ def test_evaluate_cli_writes_the_episodes(run_dir, tmp_path, capsys):
         evaluate_run(run_dir, episodes=0)
 
 
+def test_evaluate_plays_at_another_coupling(run_dir, tmp_path, capsys):
+    """``--n-req`` (a champion trained at one coupling played at another, as issue 46's
+    transfer from n_req 4 to 5): every episode as the single env plays it at that coupling;
+    a coupling the team cannot have is a one-line error."""
+    out = tmp_path / "eval.csv"
+    argv = ["evaluate", str(run_dir), "--episodes", "6", "--seed", "40", "--n-req", "2",
+            "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    assert "under n_req=2: mean G" in capsys.readouterr().out
+    tight = [float(r["G"]) for r in csv.DictReader(open(out))]
+    assert tight == _single_env_G(run_dir, range(40, 46), n_req=2)
+    assert sum(tight) < evaluate_run(run_dir, episodes=6, seed=40).G.sum()  # 2 is harder
+    assert main(["evaluate", str(run_dir), "--n-req", "5"]) == 2
+    assert "n_req" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("motion", ["ideal", "physics"])
 def test_a_checkpoint_replays_the_runs_own_next_eval_G(tmp_path, motion):
     """The champion saved after generation g, played step by step in a gymnasium vector env

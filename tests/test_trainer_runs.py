@@ -137,7 +137,7 @@ def test_a_run_of_physrover_0_5_resumes_in_its_own_columns(tmp_path, monkeypatch
         return real(self)
 
     legacy = trainer_runs.LEGACY_COLUMNS
-    monkeypatch.setattr(trainer_runs, "trainer_columns", lambda cls, curriculum: legacy)  # 0.5's writer
+    monkeypatch.setattr(trainer_runs, "trainer_columns", lambda *_: legacy)  # 0.5's writer
     monkeypatch.setattr(Trainer, "iteration", crash_after_2)
     assert main(["train", "--method", "mappo", *TINY, "--out", str(old)]) == 130
     monkeypatch.undo()

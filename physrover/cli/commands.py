@@ -295,6 +295,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         checkpoint=args.checkpoint,
         motion=args.motion,
         collisions=args.collisions,
+        n_req=args.n_req,
     )
     print(result.line())
     if args.out:
