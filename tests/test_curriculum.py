@@ -9,13 +9,13 @@ from conftest import assert_same_run, play_alike
 from test_learning import EASY
 
 from physrover.config import ConfigError, DomainConfig, RunConfig
+from physrover.core.registry import TRAINERS
 from physrover.domain.scoring.rules import PoiRules
 from physrover.domain.world import RoverWorld
 from physrover.experiment.store import read_metrics
 from physrover.experiment.training import train
 from physrover.learn.ccea import CCEA
 from physrover.learn.curriculum import CouplingCurriculum, score_at_coupling
-from physrover.marl.mappo import MAPPO
 
 # Six rovers spawned among four POIs: random commands capture at every coupling 1-4.
 CROWDED = {"n_rovers": 6, "scenario": {"kind": "uniform", "half_size": 4.0,
@@ -186,12 +186,17 @@ TRAINER = {**CROWDED, "n_req": 3, "steps": 20, "method": "mappo", "num_envs": 6,
            "curriculum_threshold": 0.2, "curriculum_patience": 2}  # fmt: skip
 
 
-def test_a_trainer_trains_at_the_curriculum_s_coupling_and_tightens_by_its_rule():
+@pytest.mark.parametrize("method", ["mappo", "maddpg"])
+def test_a_trainer_trains_at_the_curriculum_s_coupling_and_tightens_by_its_rule(method):
     """Each iteration against plain loops: the training episodes scored at the training
     coupling, the learning curve at the domain's, and the coupling tightened by a second
     curriculum fed the evaluation episodes' G at the training coupling by hand."""
-    config = RunConfig().with_overrides({**TRAINER, "seed": 3})
-    trainer = MAPPO(config.trainer, config.domain)
+    fields = {**TRAINER, "seed": 3}
+    if method == "maddpg":  # its own table: no init_log_std; updates from iteration 2
+        fields.pop("init_log_std")
+        fields.update(method="maddpg", warmup_steps=100, batch_size=32, update_every=20)
+    config = RunConfig().with_overrides(fields)
+    trainer = TRAINERS[method].load()(config.trainer, config.domain)
     trainer.follow_curriculum(CouplingCurriculum.of(config))
     by_hand = CouplingCurriculum.of(config)
     t_final, target, couplings = trainer.env.world.plan.step.t_final, np.full(4, 3), []
