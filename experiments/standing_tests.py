@@ -1,16 +1,14 @@
-"""Rows of the standing table set against the row each is read beside, at n_req 1-4.
+"""Rows of the standing table set against the row each is read beside.
 
     python experiments/standing_tests.py
 
-Reads the committed runs.csv files only (no run directory): each row's final G per seed,
-from the sweeps that made it. Tests, in each cell, the row against its reference with
-:func:`physrover.analysis.tables.compare_samples` (two-sided exact permutation p over
-the 10 against 10 seeds, Welch's t, Hedges' g), Holm's method within each pair's four
-cells. The pairs were chosen after the runs, to say what the results' prose says in
-numbers: the screen's winner against the paper's max critic, leniency against the
-average of 10 episodes (both play 10 episodes a generation), the hall of fame against D
-(its credit without the best team). Writes ``results/standing_tests.{csv,md}``.
-"""
+From the committed runs.csv files only, each row's final G per seed against its
+reference's in each cell (:func:`physrover.analysis.tables.compare_samples`: exact
+permutation p, Welch's t, Hedges' g), Holm within each pair's cells. The pairs, chosen
+after the runs: at n_req 1-4 the screen's winner against the max critic, leniency against
+the average of 10 episodes (both play 10 a generation), the hall of fame against D; at
+n_req 5-6 MAPPO under the coupling curriculum against the max critic. Writes
+``results/standing_tests.{csv,md}``."""
 
 from __future__ import annotations
 
@@ -22,7 +20,7 @@ from physrover.analysis import tables
 OUT = Path(__file__).parent / "results"
 
 # (row, its sweeps' runs.csv files, method): the reference's n_req 1-2 are
-# standing-table-low's, 3-4 fig4-7-long's (pooled into results/runs.csv).
+# standing-table-low's, 3-6 fig4-7-long's (pooled into results/runs.csv).
 LOW_AND_LONG = ("standing-table-low/runs.csv", "runs.csv")
 ROWS = {
     "max critic on D++, per-step targets": (("standing-table-winner/runs.csv",), "max-critic"),
@@ -31,11 +29,14 @@ ROWS = {
     "average of 10 episodes": (LOW_AND_LONG, "average"),
     "hall of fame": (("standing-table-lenient/runs.csv",), "hall-of-fame"),
     "D": (LOW_AND_LONG, "D"),
+    "MAPPO, std 2.72, coupling curriculum": (("mappo-curriculum-screen/runs.csv",), "mappo"),
 }
-PAIRS = [("max critic on D++, per-step targets", "max critic"),
-         ("leniency", "average of 10 episodes"), ("hall of fame", "D")]  # fmt: skip
-SWEEPS = {"standing-table-low", "fig4-7-long", "standing-table-winner", "standing-table-lenient"}
-N_REQ = (1, 2, 3, 4)
+LOW = (1, 2, 3, 4)
+PAIRS = [("max critic on D++, per-step targets", "max critic", LOW),
+         ("leniency", "average of 10 episodes", LOW), ("hall of fame", "D", LOW),
+         ("MAPPO, std 2.72, coupling curriculum", "max critic", (5, 6))]  # fmt: skip
+SWEEPS = {"standing-table-low", "fig4-7-long", "standing-table-winner", "standing-table-lenient",
+          "mappo-curriculum-screen"}  # fmt: skip
 
 
 def scores(row: str, n_req: int) -> list[float]:
@@ -47,16 +48,15 @@ def scores(row: str, n_req: int) -> list[float]:
             found += [(int(r["seed"]), float(r["final_G"])) for r in csv.DictReader(f)
                       if r["sweep"] in SWEEPS and r["method"] == method
                       and int(r["n_req"]) == n_req and r.get("feedback", "D") == "D"]  # fmt: skip
-    seeds = [seed for seed, _ in found]
-    if len(set(seeds)) != len(seeds):
+    if len({seed for seed, _ in found}) != len(found):
         raise SystemExit(f"{row}, n_req {n_req}: a seed appears twice in {files}")
     return [g for _, g in sorted(found)]
 
 
 def main() -> None:
     rows = []
-    for a, b in PAIRS:
-        for n_req in N_REQ:
+    for a, b, couplings in PAIRS:
+        for n_req in couplings:
             row = tables.compare_samples(scores(a, n_req), scores(b, n_req))
             rows.append({"A": a, "B": b, "n_req": n_req, **row})
     tables.holm_families(rows, lambda r: r["A"])
