@@ -467,6 +467,18 @@ def test_a_legend_names_its_rows_generations_or_iterations():
         "max-critic (n=3, 20-generation moving mean)"
     )
     assert plots.curve_legend("D", {"n": 1, "smooth": 1, "method": "D"}) == "D (n=1)"
+    assert plots.row_unit(["mappo", "maddpg"]) == "iteration"
+    assert plots.row_unit(["mappo", "max-critic"]) == plots.row_unit([]) == "generation"
+
+
+def test_a_trainer_s_curves_count_iterations_on_their_axis(tmp_path, figures):
+    table = {"mappo": {"method": "mappo", "n": 1, "generation": np.array([1, 2]),
+                       "mean": np.array([1.0, 2.0]), "ci": np.zeros(2), "g_max": 10.0}}  # fmt: skip
+    plots.plot_curves(table, tmp_path / "mappo.png")
+    assert figures[-1].axes[0].get_xlabel() == "Iteration"
+    table["D"] = table["mappo"] | {"method": "D"}  # a mix: the CCEA's word
+    plots.plot_curves(table, tmp_path / "both.png")
+    assert figures[-1].axes[0].get_xlabel() == "Generation"
 
 
 @pytest.mark.parametrize("name", ["fig7_long_final_vs_nreq.csv", "fig4-6_long_curves_nreq5.csv",

@@ -133,14 +133,21 @@ def _finish(fig, ax, plt, out: Path) -> None:
     plt.close(fig)
 
 
+def row_unit(methods) -> str:
+    """What the metrics rows of runs of ``methods`` count: "iteration" when every one is a
+    gradient-based trainer's, else "generation" (a CCEA's, or a mix)."""
+    from physrover.core.registry import TRAINERS
+
+    methods = set(methods)
+    return "iteration" if methods and methods <= set(TRAINERS) else "generation"
+
+
 def curve_legend(group: str, cols: dict) -> str:
     """A curve's legend entry: ``group (n=runs)``, plus the smoothing when there is some,
     e.g. ``max-critic (n=1, 20-generation moving mean)`` (``20-iteration`` for a
     gradient-based trainer, whose rows are iterations)."""
-    from physrover.core.registry import TRAINERS
-
     smooth = int(cols.get("smooth", 1))
-    unit = "iteration" if cols.get("method") in TRAINERS else "generation"
+    unit = row_unit([cols.get("method")])
     note = f", {smooth}-{unit} moving mean" if smooth > 1 else ""
     return f"{group} (n={cols['n']}{note})"
 
@@ -166,7 +173,8 @@ def plot_curves(table: dict, out: Path, title: str = "", x: str = "generation") 
     from matplotlib.ticker import MaxNLocator
 
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # generations, episodes: whole
-    ax.set_xlabel("Generation" if x == "generation" else "Training episodes")
+    unit = row_unit(c.get("method") for c in table.values())  # a trainer's rows: iterations
+    ax.set_xlabel(unit.capitalize() if x == "generation" else "Training episodes")
     _finish(fig, ax, plt, out)
     write_csv(table, out.with_suffix(".csv"), "generation")
     return out

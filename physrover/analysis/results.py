@@ -183,7 +183,8 @@ def figures(result: SweepResults, out: Path, last: int, smooth: int) -> list[Pat
     made = []
     if result.runs:
         table = plots.curve_table(result.runs, smooth=smooth)
-        title = f"{result.name}: {smooth}-generation moving mean" if smooth > 1 else result.name
+        unit = plots.row_unit(run.fields["method"] for run in result.runs)
+        title = f"{result.name}: {smooth}-{unit} moving mean" if smooth > 1 else result.name
         made.append(plots.plot_curves(table, out / f"{result.name}_curves.png", title))
     g_max = max((run.g_max for run in result.runs), default=float("nan"))
     for x in result.grid:
