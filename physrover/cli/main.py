@@ -136,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint", type=int, help="generation of the champion (default: last)")
     p.add_argument("--seed", type=int, help="seed of the first episode (default 1000000)")
     p.add_argument("--n-req", type=int, metavar="N",
-                   help="play at coupling N (every POI's n_req; default: the run's)")  # fmt: skip
+                   help="play at coupling N (the domain's n_req; default: the run's)")  # fmt: skip
     p.add_argument("--out", metavar="FILE.csv", help="also write each episode's G as CSV")
     p.set_defaults(func=cmd_evaluate)
 

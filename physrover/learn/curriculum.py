@@ -15,6 +15,15 @@ which agents are in range of each POI at every scored step (``in_range``, Eq. 13
 exactly the G of the same episode played at that coupling as long as nothing an agent
 senses depends on captures, so the curriculum refuses POIs that vanish once captured and
 POI rules (ordered, final, typed POIs), whose scoring is not a count (the config says so).
+
+A gradient-based trainer (``method = "mappo"``...) follows the same rule the other way
+round (:meth:`CouplingCurriculum.follow`, set up by
+:meth:`~physrover.marl.common.Trainer.follow_curriculum`): its evaluation episodes are
+played at the domain's coupling (the learning curve) and rescored at the training coupling
+for the rule, after every logging point. An off-policy trainer's replay buffer (MADDPG's)
+keeps transitions rewarded at the looser coupling until they are overwritten. A hybrid's
+learner (:mod:`physrover.learn.hybrid`) trains at the domain's coupling whatever the
+CCEA's curriculum does.
 """
 
 from __future__ import annotations
