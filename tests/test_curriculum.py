@@ -228,3 +228,17 @@ def test_a_trainer_s_curriculum_run_resumes_bit_for_bit(tmp_path):
     assert checkpoint_meta(part)["curriculum"] == {"coupling": 2, "streak": 1}
     train(None, part, resume=True, iterations=10, progress=False)
     assert_same_run(full, part)
+
+
+def test_the_sweep_estimate_times_a_trainer_at_its_curriculum_s_coupling(monkeypatch):
+    """`physrover bench paper` times a trainer's iteration as its run trains it: under the
+    curriculum, at the curriculum's first coupling (build_trainer, shared with the run)."""
+    from physrover.experiment import bench
+
+    timed = []
+    monkeypatch.setattr(bench, "median_seconds", lambda step, *_: timed.append(step.__self__))
+    bench.time_iteration(RunConfig().with_overrides(TRAINER))
+    (trainer,) = timed
+    assert trainer.curriculum.coupling == 1
+    np.testing.assert_array_equal(trainer.env.world.plan.step.n_req, [1, 1, 1, 1])
+    np.testing.assert_array_equal(trainer.eval_env.world.plan.step.n_req, [3, 3, 3, 3])

@@ -181,13 +181,14 @@ def time_iteration(config, iterations: int = 3) -> float:
     """Median seconds per iteration of a gradient-based trainer with ``config`` (after one
     warm-up iteration), its updates running from the first iteration (``warmup_steps`` 0
     where the trainer has a warm-up, which only collects): the steady state, where a run
-    spends nearly all its time. Evaluation episodes are played as the config says."""
-    from physrover.core.registry import TRAINERS
+    spends nearly all its time. Evaluation episodes are played as the config says, and a
+    coupling curriculum followed."""
+    from physrover.experiment.trainer_runs import build_trainer
 
     trainer_config = config.trainer
     if hasattr(trainer_config, "warmup_steps"):
         trainer_config = dataclasses.replace(trainer_config, warmup_steps=0)
-    trainer = TRAINERS[config.learn.method].load()(trainer_config, config.domain)
+    trainer = build_trainer(config, trainer_config)
     return median_seconds(trainer.iteration, 1, iterations)
 
 

@@ -55,6 +55,18 @@ def trainer_row(stats: dict, columns: list[str]) -> dict:
     }
 
 
+def build_trainer(config: RunConfig, trainer_config=None):
+    """The gradient-based trainer of ``config`` (built from its ``[mappo]``... table, or
+    from ``trainer_config`` in its place), following the run's coupling curriculum
+    (``[learn] curriculum_start``) if it has one."""
+    trainer_class = TRAINERS[config.learn.method].load()
+    trainer = trainer_class(trainer_config or config.trainer, config.domain)
+    curriculum = CouplingCurriculum.of(config)  # or None
+    if curriculum is not None:
+        trainer.follow_curriculum(curriculum)
+    return trainer
+
+
 class TrainerLearner:
     """A gradient-based trainer as the run loop drives it (:class:`RunLearner`)."""
 
@@ -72,10 +84,7 @@ class TrainerLearner:
         self.model = None
 
     def build(self):
-        self.model = self.trainer_class(self.config.trainer, self.config.domain)
-        curriculum = CouplingCurriculum.of(self.config)  # [learn] curriculum_start, or None
-        if curriculum is not None:
-            self.model.follow_curriculum(curriculum)
+        self.model = build_trainer(self.config)
         return self.model
 
     def next_row(self) -> dict:
