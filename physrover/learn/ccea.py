@@ -199,7 +199,7 @@ class CCEA:
         eval_G = float(G[self.n_played :].mean())
         train_n_req = 0
         if self.curriculum is not None:
-            train_n_req = int(self.curriculum.n_req.max())
+            train_n_req = self.curriculum.train_n_req
             eval_G = self._curriculum_step(eval_G)
         t_rollout = time.perf_counter()
 

@@ -99,6 +99,11 @@ class CouplingCurriculum:
         return np.minimum(self.target, self.coupling)
 
     @property
+    def train_n_req(self) -> int:
+        """The largest coupling any POI is trained at: a learner's ``train_n_req`` stat."""
+        return int(self.n_req.max())
+
+    @property
     def done(self) -> bool:
         """Whether the training coupling is the domain's."""
         return bool(np.array_equal(self.n_req, self.target))

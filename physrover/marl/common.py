@@ -287,7 +287,7 @@ class Trainer:
         start = time.perf_counter()
         stats: dict[str, float] = {}
         if self.curriculum is not None:  # the coupling this iteration trains at
-            stats["train_n_req"] = int(self.curriculum.n_req.max())
+            stats["train_n_req"] = self.curriculum.train_n_req
         G = self._train(stats)
         trained = time.perf_counter()
         self.iterations += 1
